@@ -29,7 +29,7 @@ inline constexpr unsigned char kMaskObject = 255;
 // both frames (not occluded, inside the image), 0 elsewhere.
 struct FlowField {
   int gap = 1;
-  cv::Mat flow;   // CV_32FC2
+  cv::Mat flow;   // CV_16FC2 (half floats: compact in memory; exact to ~1/32 px below 64 px)
   cv::Mat valid;  // CV_8UC1
 };
 
@@ -37,7 +37,7 @@ struct Frame {
   int index = 0;        // frame index within its video (0-based)
   cv::Mat rgb;          // CV_8UC3, RGB channel order (not OpenCV's BGR)
   cv::Mat mask;         // CV_8UC1 with values kMaskBackground/Ignore/Object
-  cv::Mat features;     // CV_32FC(kFeatureDim); zero outside the mask; empty if absent
+  cv::Mat features;     // CV_16FC(kFeatureDim) (half floats); zero outside the mask; empty if absent
   std::vector<FlowField> flows;  // one per configured gap and direction present
   cv::Mat depth;        // CV_32FC1 camera z (scene units), 0 = background; empty if absent
   Pose root_pose_init = PoseIdentity();  // camera_from_root, rough initialisation G0^t
