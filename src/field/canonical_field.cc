@@ -1,0 +1,283 @@
+#include "banmo/field/canonical_field.h"
+
+#include <cmath>
+#include <random>
+
+#include "banmo/util/logging.h"
+
+namespace banmo {
+namespace {
+
+const CanonicalFieldOptions& Checked(const CanonicalFieldOptions& options) {
+  CHECK(options.Check()) << "invalid CanonicalFieldOptions";
+  return options;
+}
+
+int ColorInputDimOf(const CanonicalFieldOptions& o) {
+  return o.geometry_feature_dim +
+         (o.use_view_direction ? PositionalEncoding(o.view_encoding).OutputDim() : 0) +
+         o.appearance_code_dim;
+}
+
+MlpOptions MakeMlpOptions(const CanonicalFieldOptions& o, int in, int out, int width, int layers) {
+  MlpOptions m;
+  m.input_dim = in;
+  m.output_dim = out;
+  m.width = width;
+  m.hidden_layers = layers;
+  m.activation = o.activation;
+  m.softplus_beta = o.softplus_beta;
+  return m;
+}
+
+// Portable standard normal draws (Box-Muller on raw std::mt19937 output).
+class NormalSampler {
+ public:
+  explicit NormalSampler(uint32_t seed) : rng_(seed) {}
+  double Next() {
+    const double u1 = (static_cast<double>(rng_()) + 0.5) / 4294967296.0;
+    const double u2 = (static_cast<double>(rng_()) + 0.5) / 4294967296.0;
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+  }
+
+ private:
+  std::mt19937 rng_;
+};
+
+// d_x.col(j) = (d pe_j / d x_j)^T d_pe.col(j), dpe_dx: D x 3n.
+void ChainEncodingTranspose(const Eigen::MatrixXd& dpe_dx, const Eigen::MatrixXd& d_pe,
+                            Eigen::Matrix3Xd* d_x) {
+  const int n = static_cast<int>(d_pe.cols());
+  d_x->resize(3, n);
+  for (int j = 0; j < n; ++j) {
+    d_x->col(j).noalias() = dpe_dx.middleCols(3 * j, 3).transpose() * d_pe.col(j);
+  }
+}
+
+}  // namespace
+
+bool CanonicalFieldOptions::Check() const {
+  if (!position_encoding.Check() || !position_encoding.include_input) return false;
+  if (use_view_direction && !view_encoding.Check()) return false;
+  if (sdf_width <= 0 || sdf_layers < 1 || geometry_feature_dim < 0) return false;
+  if (color_width <= 0 || color_layers < 0) return false;
+  if (appearance_code_dim < 0) return false;
+  if (embedding_width <= 0 || embedding_layers < 0) return false;
+  if (!(softplus_beta > 0.0) || !std::isfinite(softplus_beta)) return false;
+  if (!(init_sphere_radius > 0.0) || !std::isfinite(init_sphere_radius)) return false;
+  return ColorInputDimOf(*this) > 0;
+}
+
+CanonicalField::CanonicalField(const CanonicalFieldOptions& options)
+    : options_(Checked(options)),
+      pe_(options_.position_encoding),
+      view_pe_(options_.view_encoding),
+      sdf_mlp_(MakeMlpOptions(options_, pe_.OutputDim(), 1 + options_.geometry_feature_dim,
+                              options_.sdf_width, options_.sdf_layers)),
+      color_mlp_(MakeMlpOptions(options_, ColorInputDimOf(options_), 3, options_.color_width,
+                                options_.color_layers)),
+      embedding_mlp_(MakeMlpOptions(options_, pe_.OutputDim(), CanonicalFieldOptions::kEmbeddingDim,
+                                    options_.embedding_width, options_.embedding_layers)) {}
+
+int CanonicalField::ColorInputDim() const { return ColorInputDimOf(options_); }
+
+void CanonicalField::InitializeParameters(uint32_t seed, double* sdf, double* color,
+                                          double* embedding) const {
+  // SAL geometric initialisation (Atzmon & Lipman 2020, Thm. 1), with the
+  // Fourier features switched off in the first layer (NeuS/IDR practice):
+  // hidden weights N(0, 2 / out), zero biases, last layer mean
+  // sqrt(pi / in) with tiny spread and bias -r, so that for ReLU (softplus
+  // with large beta) the expected output is |X| - r.
+  NormalSampler normal(seed);
+  const Mlp& m = sdf_mlp_;
+  const int L = m.NumLinearLayers();
+  for (int l = 0; l < L; ++l) {
+    const int in = m.LayerInputDim(l), out = m.LayerOutputDim(l);
+    double* w = sdf + m.WeightOffset(l);
+    double* b = sdf + m.BiasOffset(l);
+    for (int o = 0; o < out; ++o) {
+      for (int i = 0; i < in; ++i) {
+        double value;
+        if (l + 1 == L) {
+          value = (o == 0) ? std::sqrt(M_PI / in) + 1e-4 * normal.Next()
+                           : normal.Next() / std::sqrt(static_cast<double>(in));
+        } else if (l == 0 && i >= 3) {
+          value = 0.0;  // Fourier features (the raw input is the first 3)
+        } else {
+          value = normal.Next() * std::sqrt(2.0 / out);
+        }
+        w[o * in + i] = value;
+      }
+      b[o] = (l + 1 == L && o == 0) ? -options_.init_sphere_radius : 0.0;
+    }
+  }
+  color_mlp_.InitializeDefault(seed + 1, color);
+  embedding_mlp_.InitializeDefault(seed + 2, embedding);
+}
+
+void CanonicalField::ForwardBatch(const double* sdf_params, const double* color_params,
+                                  FieldBatch* batch, bool input_jacobians) const {
+  CHECK(batch != nullptr);
+  const int n = batch->size();
+  const int F = options_.geometry_feature_dim;
+  const int A = options_.appearance_code_dim;
+  const int V = options_.use_view_direction ? view_pe_.OutputDim() : 0;
+  if (options_.use_view_direction) CHECK_EQ(batch->view_dir.cols(), n) << "view_dir size";
+  if (A > 0) {
+    CHECK_EQ(batch->appearance.rows(), A) << "appearance rows";
+    CHECK_EQ(batch->appearance.cols(), n) << "appearance cols";
+  }
+  pe_.EncodeBatch(batch->x, &batch->pe, input_jacobians ? &batch->dpe_dx : nullptr);
+  if (!input_jacobians) batch->dpe_dx.resize(0, 0);
+  Eigen::MatrixXd sdf_out;
+  sdf_mlp_.ForwardBatch(sdf_params, batch->pe, &batch->sdf_cache, &sdf_out);
+  batch->sdf = sdf_out.row(0).transpose();
+  batch->feature = sdf_out.bottomRows(F);
+
+  Eigen::MatrixXd& cin = batch->color_input;
+  cin.resize(F + V + A, n);
+  cin.topRows(F) = batch->feature;
+  if (V > 0) {
+    Eigen::MatrixXd view_enc;
+    view_pe_.EncodeBatch(batch->view_dir, &view_enc, input_jacobians ? &batch->dview_enc : nullptr);
+    cin.middleRows(F, V) = view_enc;
+  }
+  if (A > 0) cin.bottomRows(A) = batch->appearance;
+  Eigen::MatrixXd logits;
+  color_mlp_.ForwardBatch(color_params, cin, &batch->color_cache, &logits);
+  // Overflow-free sigmoid.
+  const Eigen::ArrayXXd e = (-logits.array().abs()).exp();
+  batch->rgb = (logits.array() > 0.0).select(1.0 / (1.0 + e), e / (1.0 + e)).matrix();
+  if (!input_jacobians) return;
+
+  // SDF MLP outputs wrt x: forward tangents with the 3 encoding columns.
+  Eigen::MatrixXd t;  // (1+F) x 3n
+  sdf_mlp_.ForwardTangents(sdf_params, batch->sdf_cache, batch->dpe_dx, 3, &t);
+  batch->dsdf_dx.resize(3, n);
+  for (int j = 0; j < n; ++j) batch->dsdf_dx.col(j) = t.block(0, 3 * j, 1, 3).transpose();
+
+  // Colour MLP: one reverse pass per output channel gives d rgb_c / d input.
+  const Eigen::ArrayXXd ds = batch->rgb.array() * (1.0 - batch->rgb.array());  // sigmoid'
+  std::vector<Eigen::MatrixXd> dcin(3);
+  for (int c = 0; c < 3; ++c) {
+    Eigen::MatrixXd d_logits = Eigen::MatrixXd::Zero(3, n);
+    d_logits.row(c) = ds.row(c).matrix();
+    color_mlp_.Backward(color_params, batch->color_cache, d_logits, {0}, nullptr, &dcin[c]);
+  }
+  batch->drgb_dx.resize(3, 3 * n);
+  batch->drgb_dview.setZero(3, 3 * n);
+  batch->drgb_dappearance.resize(3, static_cast<Eigen::Index>(A) * n);
+  Eigen::MatrixXd jac(3, F + V + A);
+  for (int j = 0; j < n; ++j) {
+    for (int c = 0; c < 3; ++c) jac.row(c) = dcin[c].col(j).transpose();
+    batch->drgb_dx.middleCols(3 * j, 3).noalias() = jac.leftCols(F) * t.block(1, 3 * j, F, 3);
+    if (V > 0) {
+      batch->drgb_dview.middleCols(3 * j, 3).noalias() =
+          jac.middleCols(F, V) * batch->dview_enc.middleCols(3 * j, 3);
+    }
+    if (A > 0)
+      batch->drgb_dappearance.middleCols(static_cast<Eigen::Index>(A) * j, A) = jac.rightCols(A);
+  }
+}
+
+void CanonicalField::BackwardBatch(const double* sdf_params, const double* color_params,
+                                   const FieldBatch& batch, const Eigen::VectorXd& d_sdf,
+                                   const Eigen::Matrix3Xd& d_rgb,
+                                   const std::vector<int>& group_begin,
+                                   Eigen::MatrixXd* d_sdf_params, Eigen::MatrixXd* d_color_params,
+                                   Eigen::Matrix3Xd* d_x) const {
+  const int n = batch.size();
+  const int F = options_.geometry_feature_dim;
+  CHECK_EQ(d_sdf.size(), n);
+  CHECK_EQ(d_rgb.cols(), n);
+  CHECK_EQ(batch.color_cache.num_samples(), n) << "call ForwardBatch first";
+  const Eigen::MatrixXd d_logits =
+      (d_rgb.array() * batch.rgb.array() * (1.0 - batch.rgb.array())).matrix();
+  const bool need_sdf = d_sdf_params != nullptr || d_x != nullptr;
+  Eigen::MatrixXd d_cin;
+  color_mlp_.Backward(color_params, batch.color_cache, d_logits, group_begin, d_color_params,
+                      need_sdf ? &d_cin : nullptr);
+  if (!need_sdf) return;
+  Eigen::MatrixXd d_out(1 + F, n);
+  d_out.row(0) = d_sdf.transpose();
+  d_out.bottomRows(F) = d_cin.topRows(F);
+  Eigen::MatrixXd d_pe;
+  sdf_mlp_.Backward(sdf_params, batch.sdf_cache, d_out, group_begin, d_sdf_params,
+                    d_x != nullptr ? &d_pe : nullptr);
+  if (d_x == nullptr) return;
+  if (batch.dpe_dx.cols() == 3 * n) {
+    ChainEncodingTranspose(batch.dpe_dx, d_pe, d_x);
+  } else {
+    Eigen::MatrixXd pe, dpe_dx;
+    pe_.EncodeBatch(batch.x, &pe, &dpe_dx);
+    ChainEncodingTranspose(dpe_dx, d_pe, d_x);
+  }
+}
+
+void CanonicalField::SdfGradientBackward(const double* sdf_params, const FieldBatch& batch,
+                                         const Eigen::Matrix3Xd& c,
+                                         const std::vector<int>& group_begin,
+                                         Eigen::MatrixXd* d_sdf_params,
+                                         Eigen::Matrix3Xd* d_x) const {
+  const int n = batch.size();
+  CHECK_EQ(c.cols(), n);
+  CHECK_EQ(batch.sdf_cache.num_samples(), n) << "call ForwardBatch first";
+  Eigen::MatrixXd pe, dpe_dx_local;
+  const Eigen::MatrixXd* dpe_dx = &batch.dpe_dx;
+  if (batch.dpe_dx.cols() != 3 * n) {
+    pe_.EncodeBatch(batch.x, &pe, &dpe_dx_local);
+    dpe_dx = &dpe_dx_local;
+  }
+  const int D = pe_.OutputDim();
+  // S = sum_j c_j . grad sdf(x_j) = sum_j e_0^T J_mlp(pe_j) (dpe/dx_j c_j):
+  // tangent v_j = dpe/dx_j c_j, tangent cotangent e_0.
+  Eigen::MatrixXd v(D, n);
+  for (int j = 0; j < n; ++j) v.col(j).noalias() = dpe_dx->middleCols(3 * j, 3) * c.col(j);
+  Eigen::MatrixXd cot = Eigen::MatrixXd::Zero(sdf_mlp_.OutputDim(), n);
+  cot.row(0).setOnes();
+  Eigen::MatrixXd a_bar, a_dot_bar;
+  sdf_mlp_.BackwardOfTangent(sdf_params, batch.sdf_cache, v, cot, group_begin, d_sdf_params,
+                             d_x != nullptr ? &a_bar : nullptr,
+                             d_x != nullptr ? &a_dot_bar : nullptr);
+  if (d_x == nullptr) return;
+  // dS/dx_j = dpe/dx_j^T a_bar_j + sum_r a_dot_bar_rj d2pe_rj c_{coord(r) j}.
+  ChainEncodingTranspose(*dpe_dx, a_bar, d_x);
+  Eigen::MatrixXd d2;
+  pe_.EncodeSecondDerivativeBatch(batch.x, &d2);
+  for (int j = 0; j < n; ++j) {
+    for (int r = 0; r < D; ++r) {
+      const int i = pe_.InputCoordinate(r);
+      (*d_x)(i, j) += a_dot_bar(r, j) * d2(r, j) * c(i, j);
+    }
+  }
+}
+
+void CanonicalField::ForwardEmbeddingBatch(const double* params, EmbeddingBatch* batch,
+                                           bool input_jacobians) const {
+  CHECK(batch != nullptr);
+  const int n = batch->size();
+  pe_.EncodeBatch(batch->x, &batch->pe, &batch->dpe_dx);
+  embedding_mlp_.ForwardBatch(params, batch->pe, &batch->cache, &batch->psi);
+  if (!input_jacobians) return;
+  Eigen::MatrixXd t;
+  embedding_mlp_.ForwardTangents(params, batch->cache, batch->dpe_dx, 3, &t);
+  batch->dpsi_dx = std::move(t);
+  CHECK_EQ(batch->dpsi_dx.cols(), 3 * n);
+}
+
+void CanonicalField::BackwardEmbeddingBatch(const double* params, const EmbeddingBatch& batch,
+                                            const Eigen::MatrixXd& d_psi,
+                                            const std::vector<int>& group_begin,
+                                            Eigen::MatrixXd* d_params,
+                                            Eigen::Matrix3Xd* d_x) const {
+  const int n = batch.size();
+  CHECK_EQ(d_psi.rows(), EmbeddingDim());
+  CHECK_EQ(d_psi.cols(), n);
+  CHECK_EQ(batch.cache.num_samples(), n) << "call ForwardEmbeddingBatch first";
+  Eigen::MatrixXd d_pe;
+  embedding_mlp_.Backward(params, batch.cache, d_psi, group_begin, d_params,
+                          d_x != nullptr ? &d_pe : nullptr);
+  if (d_x != nullptr) ChainEncodingTranspose(batch.dpe_dx, d_pe, d_x);
+}
+
+}  // namespace banmo

@@ -1,0 +1,88 @@
+#include "banmo/field/encoding.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "banmo/util/logging.h"
+
+namespace banmo {
+
+bool PositionalEncodingOptions::Check() const {
+  if (num_bands < 0) return false;
+  if (!(base_frequency > 0.0) || !std::isfinite(base_frequency)) return false;
+  return (include_input ? 1 : 0) + 2 * num_bands > 0;
+}
+
+PositionalEncoding::PositionalEncoding(const PositionalEncodingOptions& options)
+    : options_(options) {
+  CHECK(options_.Check()) << "invalid PositionalEncodingOptions";
+  band_weight_.assign(options_.num_bands, 1.0);
+  band_frequency_.resize(options_.num_bands);
+  for (int l = 0; l < options_.num_bands; ++l) {
+    band_frequency_[l] = std::ldexp(1.0, l) * M_PI * options_.base_frequency;
+  }
+}
+
+void PositionalEncoding::SetAnnealing(double alpha) {
+  alpha_ = std::max(0.0, alpha);
+  for (int l = 0; l < options_.num_bands; ++l) {
+    const double t = std::clamp(alpha_ - l, 0.0, 1.0);
+    band_weight_[l] = 0.5 * (1.0 - std::cos(M_PI * t));
+  }
+}
+
+void PositionalEncoding::EncodeBatch(const Eigen::Matrix3Xd& x, Eigen::MatrixXd* out,
+                                     Eigen::MatrixXd* d_out_dx) const {
+  CHECK(out != nullptr);
+  const int n = static_cast<int>(x.cols());
+  const int D = OutputDim();
+  out->resize(D, n);
+  if (d_out_dx != nullptr) d_out_dx->setZero(D, 3 * n);
+  for (int j = 0; j < n; ++j) {
+    double* o = out->col(j).data();
+    int r = 0;
+    if (options_.include_input) {
+      for (int c = 0; c < 3; ++c) {
+        o[r + c] = x(c, j);
+        if (d_out_dx != nullptr) (*d_out_dx)(r + c, 3 * j + c) = 1.0;
+      }
+      r += 3;
+    }
+    for (int l = 0; l < options_.num_bands; ++l) {
+      const double f = band_frequency_[l];
+      const double w = band_weight_[l];
+      for (int c = 0; c < 3; ++c) {
+        const double s = std::sin(f * x(c, j));
+        const double co = std::cos(f * x(c, j));
+        o[r + c] = w * s;
+        o[r + 3 + c] = w * co;
+        if (d_out_dx != nullptr) {
+          (*d_out_dx)(r + c, 3 * j + c) = w * f * co;
+          (*d_out_dx)(r + 3 + c, 3 * j + c) = -w * f * s;
+        }
+      }
+      r += 6;
+    }
+  }
+}
+
+void PositionalEncoding::EncodeSecondDerivativeBatch(const Eigen::Matrix3Xd& x,
+                                                     Eigen::MatrixXd* d2) const {
+  CHECK(d2 != nullptr);
+  const int n = static_cast<int>(x.cols());
+  d2->setZero(OutputDim(), n);
+  for (int j = 0; j < n; ++j) {
+    int r = options_.include_input ? 3 : 0;
+    for (int l = 0; l < options_.num_bands; ++l) {
+      const double f = band_frequency_[l];
+      const double w = band_weight_[l];
+      for (int c = 0; c < 3; ++c) {
+        (*d2)(r + c, j) = -w * f * f * std::sin(f * x(c, j));
+        (*d2)(r + 3 + c, j) = -w * f * f * std::cos(f * x(c, j));
+      }
+      r += 6;
+    }
+  }
+}
+
+}  // namespace banmo
