@@ -4,6 +4,7 @@
 // everything and WriteDataset writes it atomically (temp folder, rename).
 #pragma once
 
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -34,12 +35,12 @@ struct FlowField {
 };
 
 struct Frame {
-  int index = 0;        // frame index within its video (0-based)
-  cv::Mat rgb;          // CV_8UC3, RGB channel order (not OpenCV's BGR)
-  cv::Mat mask;         // CV_8UC1 with values kMaskBackground/Ignore/Object
-  cv::Mat features;     // CV_16FC(kFeatureDim) (half floats); zero outside the mask; empty if absent
+  int index = 0;     // frame index within its video (0-based)
+  cv::Mat rgb;       // CV_8UC3, RGB channel order (not OpenCV's BGR)
+  cv::Mat mask;      // CV_8UC1 with values kMaskBackground/Ignore/Object
+  cv::Mat features;  // CV_16FC(kFeatureDim) (half floats); zero outside the mask; empty if absent
   std::vector<FlowField> flows;  // one per configured gap and direction present
-  cv::Mat depth;        // CV_32FC1 camera z (scene units), 0 = background; empty if absent
+  cv::Mat depth;                 // CV_32FC1 camera z (scene units), 0 = background; empty if absent
   Pose root_pose_init = PoseIdentity();  // camera_from_root, rough initialisation G0^t
   std::optional<Pose> root_pose_gt;      // camera_from_root ground truth (synthetic)
   std::string gt_mesh_path;              // posed GT mesh (PLY, camera coords); empty if absent
@@ -49,10 +50,21 @@ struct Frame {
   const FlowField* FlowForGap(int gap) const;
 };
 
+// Which optional data a video has on disk (set by LoadDataset from the
+// manifest; WriteDataset derives presence from the frames instead).
+struct VideoContents {
+  bool flow = false;           // forward and backward flow for every gap of Dataset::flow_gaps
+  bool features = false;       // features/%05d.npy
+  bool depth = false;          // depth/%05d.png (or .npy)
+  bool gt_mesh = false;        // gt_mesh/%05d.ply
+  bool root_poses_gt = false;  // root_poses_gt.txt
+};
+
 struct Video {
   std::string name;
   PinholeCamera camera;
   std::vector<Frame> frames;
+  VideoContents present;  // what the files hold (see VideoContents)
 };
 
 struct Dataset {
@@ -61,7 +73,12 @@ struct Dataset {
   std::vector<Video> videos;
 
   int NumFrames() const;
+  // Number of frames marked skip (empty masks).
+  int NumSkippedFrames() const;
 };
+
+// Format version written to and accepted from manifest.yaml.
+inline constexpr int kDatasetFormatVersion = 1;
 
 struct LoadOptions {
   bool load_features = true;  // features are the largest part; skip if unused
@@ -82,5 +99,50 @@ Dataset LoadDataset(const std::string& dir, const LoadOptions& options = {});
 void WriteDataset(const Dataset& dataset, const std::string& dir,
                   const std::vector<std::vector<TriangleMesh>>* gt_meshes = nullptr,
                   bool overwrite = false);
+
+// How flow and depth are stored (docs/dataset.md).
+enum class FlowEncoding {
+  kKittiPng16,  // flow/fw_<g>/%05d.png: 16-bit KITTI encoding, 1/64 px steps, |flow| < 512 px
+  kNpy,         // flow/fw_<g>/%05d.npy: float16 H x W x 3 (u, v, valid in {0, 1})
+};
+enum class DepthEncoding {
+  kPng16,  // depth/%05d.png: 16-bit, value * depth_unit = z in scene units, 0 = background
+  kNpy,    // depth/%05d.npy: float32 H x W
+};
+
+struct WriteOptions {
+  // Replace a non-empty existing `dir` (the old folder is removed only after
+  // the new one is complete).
+  bool overwrite = false;
+  FlowEncoding flow_encoding = FlowEncoding::kKittiPng16;
+  DepthEncoding depth_encoding = DepthEncoding::kPng16;
+  // Scene units per count of 16-bit depth; <= 0 picks the finest of
+  // {1, 2, 5} x 10^k (k >= -5) that holds the largest depth of the dataset.
+  double depth_unit = 0.0;
+  // zlib level of the PNGs, 0-9 (OpenCV's IMWRITE_PNG_COMPRESSION).
+  int png_compression = 3;
+
+  // Throws InputError naming the field on a bad value.
+  void Check() const;
+};
+
+// Same as above with explicit options.
+void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOptions& options,
+                  const std::vector<std::vector<TriangleMesh>>* gt_meshes = nullptr);
+
+// Total size in bytes of the regular files below `dir` (for summaries).
+std::uintmax_t DirectoryBytes(const std::string& dir);
+
+// Path of a frame's file inside a video folder, e.g. FrameFileName(7, "png")
+// = "00007.png". Frame indices have five digits (at most 100000 frames).
+std::string FrameFileName(int index, const std::string& extension);
+
+// Reads a root-pose file: one line per frame, "qw qx qy qz tx ty tz"
+// (camera_from_root), '#' starts a comment line. Each quaternion must have
+// norm 1 +- 1e-3 (it is then normalised). Throws InputError naming the file
+// and line. If expected_lines >= 0 the number of pose lines must match.
+std::vector<Pose> ReadPoseFile(const std::string& path, int expected_lines = -1);
+// Writes poses in the same format (17 significant digits), atomically.
+void WritePoseFile(const std::string& path, const std::vector<Pose>& poses);
 
 }  // namespace banmo
