@@ -1,0 +1,30 @@
+// 3D cycle-consistency loss (BANMo Sec. 3.4, Eq. 19), per ray sample i:
+//   r_i = sqrt(w tau_i) (W^{t,->}(W^{t,<-}(X_i^t)) - X_i^t),   dimension 3,
+// backward to canonical, then forward back (DESIGN.md's reading of the
+// paper's slip), with tau_i a constant weight (no gradient through it).
+// X_i^t and the cycled point are in camera coordinates of frame t.
+#pragma once
+
+#include <cmath>
+
+namespace banmo {
+
+class Cycle3dLoss {
+ public:
+  static constexpr int kNumResiduals = 3;
+  // tau: the sample's rendering weight, held constant.
+  Cycle3dLoss(double tau, double weight) : sqrt_weight_tau_(std::sqrt(weight * tau)) {}
+
+  template <typename T>
+  bool operator()(const T* cycled_point, const T* sample_point, T* residual) const {
+    for (int k = 0; k < 3; ++k) {
+      residual[k] = T(sqrt_weight_tau_) * (cycled_point[k] - sample_point[k]);
+    }
+    return true;
+  }
+
+ private:
+  const double sqrt_weight_tau_;
+};
+
+}  // namespace banmo

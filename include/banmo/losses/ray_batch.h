@@ -1,0 +1,139 @@
+// Mixed-mode, batched evaluation of a minibatch of rays (DESIGN.md Sec. 5).
+//
+// A RayBatch is the ceres::EvaluationCallback of a problem: before Ceres
+// evaluates residual blocks at a new point, PrepareForEvaluation pushes every
+// ray's samples through the MLPs in one batched pass (Eigen GEMM), runs each
+// ray's templated stages (losses/ray_functors.h) with Jets over that stage's
+// few local variables only, and chains the local derivatives through exact
+// reverse-mode products of the MLPs (field/canonical_field.h), batched over
+// the whole minibatch with one backward pass per residual row. Each
+// RayTermCostFunction::Evaluate then copies its rows from that cache.
+//
+// Each active loss term of a ray is its own residual block: it carries only
+// the parameter blocks that term depends on (the 3D cycle carries no MLP
+// weights, the silhouette no colour weights), and each term gets its own
+// robust loss from the stage config.
+//
+// When Evaluate is called at parameter values the batch did not prepare
+// (e.g. ceres::GradientChecker's perturbed copies), the cost function
+// evaluates its ray alone, on the fly, through the same code path: results
+// are identical, only slower.
+#pragma once
+
+#include <ceres/cost_function.h>
+#include <ceres/evaluation_callback.h>
+
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "banmo/field/embedding_match.h"
+#include "banmo/losses/ray.h"
+#include "banmo/model/model.h"
+
+namespace banmo {
+
+// Parameter blocks a ray's evaluation reads.
+enum RayBlock {
+  kBlockSdf = 0,
+  kBlockColor,
+  kBlockEmbedding,
+  kBlockLogBeta,
+  kBlockAppearance,
+  kBlockRoot,           // root_delta of frame t
+  kBlockBones,          // rest bones
+  kBlockBonesT,         // bone transforms of frame t
+  kBlockIntrinsics,     // intrinsics of the ray's video
+  kBlockPartnerRoot,    // root_delta of the flow partner frame t'
+  kBlockPartnerBonesT,  // bone transforms of frame t'
+  kNumRayBlocks
+};
+const char* RayBlockName(RayBlock block);
+
+// Pointers to the values of a ray's parameter blocks (null = absent).
+struct RayParameters {
+  std::array<const double*, kNumRayBlocks> block{};
+  const double* root_init = nullptr;          // G0^t (data)
+  const double* partner_root_init = nullptr;  // G0^{t'} (data)
+};
+
+using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// A ray's residuals and Jacobians: render-term rows first (LossTerm order),
+// then the 3N rows of the 3D cycle.
+struct RayEvaluation {
+  std::vector<double> residuals;
+  std::array<int, kNumLossTerms> term_row{};            // first row of each term, -1 if inactive
+  std::array<RowMajorMatrix, kNumRayBlocks> jacobians;  // rows x block size
+  bool has_jacobians = false;
+};
+
+struct RayBatchOptions {
+  RayLossWeights weights;           // per-term weights (0 = off)
+  int match_top_k = 32;             // K of the truncated soft-argmax (Eq. 15)
+  EmbeddingMatcherOptions matcher;  // temperature and search options
+
+  // Throws InputError naming the field on a violated constraint.
+  void Check() const;
+};
+
+class RayBatch : public ceres::EvaluationCallback {
+ public:
+  RayBatch(Model* model, const RayBatchOptions& options);
+  ~RayBatch() override;
+
+  const RayBatchOptions& options() const { return options_; }
+  const Model& model() const { return *model_; }
+
+  // Canonical points X of the soft-argmax (Eq. 15's V*), 3 x M.
+  void SetMatchGrid(const Eigen::Matrix3Xd& grid);
+  const Eigen::Matrix3Xd& match_grid() const { return grid_; }
+
+  // Starts a new minibatch. Chooses each feature ray's top-K grid points with
+  // the current embedding (held fixed for this minibatch) unless the ray
+  // already lists them.
+  void SetRays(std::vector<Ray> rays);
+  const std::vector<Ray>& rays() const { return rays_; }
+  int num_rays() const { return static_cast<int>(rays_.size()); }
+
+  // Parameter blocks (model pointers) of `term` for ray `index`, in the order
+  // the cost function expects, and their ids.
+  std::vector<RayBlock> TermBlocks(int index, LossTerm term) const;
+  std::vector<double*> TermParameterBlocks(int index, LossTerm term) const;
+  RayParameters ModelParameters(const Ray& ray) const;
+
+  // The cost function of one term of one ray (caller owns it; a
+  // ceres::Problem takes ownership when added).
+  std::unique_ptr<ceres::CostFunction> MakeCostFunction(int index, LossTerm term);
+
+  // ceres::EvaluationCallback: evaluates the whole batch at the model's
+  // current parameter values.
+  void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override;
+
+  // Evaluates every ray at the model's current values (what
+  // PrepareForEvaluation does); the cache then serves the cost functions.
+  void EvaluateAll(bool jacobians);
+  bool cache_valid() const { return cache_valid_; }
+  const RayEvaluation& evaluation(int index) const { return evaluations_[index]; }
+
+  // The pipeline itself: evaluates `rays` with the given parameter values.
+  // All rays must share the MLP blocks.
+  void EvaluateRays(const std::vector<const Ray*>& rays, const std::vector<RayParameters>& params,
+                    bool jacobians, std::vector<RayEvaluation>* out) const;
+
+  // Marks the cache stale (e.g. after parameters were changed outside Ceres).
+  void Invalidate() { cache_valid_ = false; }
+
+ private:
+  struct Workspace;
+  Model* model_;
+  RayBatchOptions options_;
+  Eigen::Matrix3Xd grid_;
+  std::vector<Ray> rays_;
+  std::vector<RayEvaluation> evaluations_;
+  bool cache_valid_ = false;
+  bool cache_has_jacobians_ = false;
+};
+
+}  // namespace banmo

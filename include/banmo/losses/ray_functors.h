@@ -1,0 +1,177 @@
+// The templated stages of a ray's evaluation. Each is written once and used
+// twice: with Jets over a stage's few local variables in the mixed-mode path
+// (losses/ray_batch.h) and with Jets over every parameter in the full-Jet
+// reference (losses/ray_reference.h).
+//
+// Frames: x_in_cam = camera coordinates of frame t; x_in_root = the object's
+// root frame at time t; canonical = rest space. camera_from_root G^t =
+// dG^t * G0^t (Eq. 20), dG^t the root_delta parameter block, G0^t data.
+#pragma once
+
+#include <cmath>
+
+#include "banmo/geometry/camera.h"
+#include "banmo/geometry/se3.h"
+#include "banmo/losses/cycle_2d_loss.h"
+#include "banmo/losses/cycle_3d_loss.h"
+#include "banmo/losses/feature_match_loss.h"
+#include "banmo/losses/flow_loss.h"
+#include "banmo/losses/ray.h"
+#include "banmo/losses/rgb_loss.h"
+#include "banmo/losses/silhouette_loss.h"
+#include "banmo/render/volume_rendering.h"
+
+namespace banmo {
+
+// G^t = dG^t * G0^t.
+template <typename T>
+inline void RootPose(const T* root_delta, const double* root_init, T* camera_from_root) {
+  T init[kPoseSize];
+  for (int k = 0; k < kPoseSize; ++k) init[k] = T(root_init[k]);
+  PoseCompose(root_delta, init, camera_from_root);
+}
+
+// Sample point of a ray at camera depth z: x_in_cam = z K^{-1} [u v 1]^T.
+template <typename T>
+inline void SampleInCamera(const T* intrinsics, const double* uv, double depth, T* x_in_cam) {
+  const T uv_t[2] = {T(uv[0]), T(uv[1])};
+  T dir[3];
+  PixelToRayDirection(intrinsics, uv_t, dir);
+  for (int k = 0; k < 3; ++k) x_in_cam[k] = T(depth) * dir[k];
+}
+
+// x_in_root = (G^t)^{-1} x_in_cam for the ray sample at depth z.
+template <typename T>
+inline void SampleInRoot(const T* root_delta, const double* root_init, const T* intrinsics,
+                         const double* uv, double depth, T* x_in_root) {
+  T camera_from_root[kPoseSize], x_in_cam[3];
+  RootPose(root_delta, root_init, camera_from_root);
+  SampleInCamera(intrinsics, uv, depth, x_in_cam);
+  PoseInverseTransformPoint(camera_from_root, x_in_cam, x_in_root);
+}
+
+// Unit viewing direction of the ray (camera towards the scene) in the root
+// frame; the colour MLP's view input (Eq. 1). Not warped by the bones.
+template <typename T>
+inline void ViewDirectionInRoot(const T* root_delta, const double* root_init, const T* intrinsics,
+                                const double* uv, T* view_in_root) {
+  using std::sqrt;
+  T camera_from_root[kPoseSize], dir[3], d[3];
+  RootPose(root_delta, root_init, camera_from_root);
+  const T uv_t[2] = {T(uv[0]), T(uv[1])};
+  PixelToRayDirection(intrinsics, uv_t, dir);
+  PoseInverseRotateVector(camera_from_root, dir, d);
+  const T norm = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  for (int k = 0; k < 3; ++k) view_in_root[k] = d[k] / norm;
+}
+
+// uv = Pi(G^t x_in_root): project a root-frame point into frame t.
+template <typename T>
+inline void ProjectRootPoint(const T* root_delta, const double* root_init, const T* intrinsics,
+                             const T* x_in_root, T* uv) {
+  T camera_from_root[kPoseSize], x_in_cam[3];
+  RootPose(root_delta, root_init, camera_from_root);
+  PoseTransformPoint(camera_from_root, x_in_root, x_in_cam);
+  ProjectPoint(intrinsics, x_in_cam, uv);
+}
+
+// 3D cycle residual of one sample (Eq. 19): the forward-warped canonical
+// point (already in the root frame, x_cycled_in_root) is mapped to the camera
+// and compared with the sample point itself.
+template <typename T>
+inline void Cycle3dResidual(const Cycle3dLoss& loss, const T* root_delta, const double* root_init,
+                            const T* intrinsics, const double* uv, double depth,
+                            const T* x_cycled_in_root, T* residual) {
+  T camera_from_root[kPoseSize], cycled_in_cam[3], sample_in_cam[3];
+  RootPose(root_delta, root_init, camera_from_root);
+  PoseTransformPoint(camera_from_root, x_cycled_in_root, cycled_in_cam);
+  SampleInCamera(intrinsics, uv, depth, sample_in_cam);
+  loss(cycled_in_cam, sample_in_cam, residual);
+}
+
+// Local variables of the render functor, as offsets into one flat vector u.
+// Parts that a ray does not need have size 0.
+struct RenderLocals {
+  int num_samples = 0;
+  int sdf = 0, rgb = 0, canonical = 0, displacement = 0, log_beta = 0, matched = 0,
+      cycle_projection = 0;
+  int size = 0;
+  bool has_rgb = false, has_displacement = false, has_matched = false, has_cycle = false;
+
+  // Layout: [sdf (N) | rgb (3N) | canonical X*_i (3N) | displacement (2N) |
+  //          log_beta (1) | matched X_hat* (3) | cycle projection (2)].
+  static RenderLocals For(const Ray& ray, const RayLossWeights& weights);
+};
+
+// Everything of a ray downstream of the per-sample field values and warps:
+// volume rendering (Eqs. 4-7) and the rgb, silhouette, flow, feature-match
+// and 2D-cycle residuals (Eqs. 16-18) of the ray's active terms, in
+// LossTerm order. Input u laid out as RenderLocals.
+class RayRenderFunctor {
+ public:
+  RayRenderFunctor(const Ray& ray, const RayLossWeights& weights)
+      : ray_(ray), weights_(weights), locals_(RenderLocals::For(ray, weights)) {
+    for (int t = 0; t < kNumRenderTerms; ++t) {
+      const LossTerm term = static_cast<LossTerm>(t);
+      active_[t] = ray.HasTerm(term, weights);
+      if (active_[t]) num_residuals_ += LossTermResiduals(term, ray.NumSamples());
+    }
+  }
+
+  const RenderLocals& locals() const { return locals_; }
+  int num_residuals() const { return num_residuals_; }
+  bool active(LossTerm term) const { return active_[static_cast<int>(term)]; }
+
+  template <typename T>
+  bool operator()(const T* u, T* residual) const {
+    const int n = locals_.num_samples;
+    std::vector<T> tau(n);
+    CompositeWeights(n, u + locals_.sdf, u[locals_.log_beta], ray_.samples.deltas.data(),
+                     tau.data());
+    int row = 0;
+    if (active(LossTerm::kRgb)) {
+      T color[3] = {T(0), T(0), T(0)};
+      for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < 3; ++k) color[k] += tau[i] * u[locals_.rgb + 3 * i + k];
+      }
+      RgbLoss(ray_.rgb, weights_.rgb)(color, residual + row);
+      row += RgbLoss::kNumResiduals;
+    }
+    if (active(LossTerm::kSilhouette)) {
+      T opacity(0);
+      for (int i = 0; i < n; ++i) opacity += tau[i];
+      SilhouetteLoss(ray_.mask, weights_.silhouette)(&opacity, residual + row);
+      row += SilhouetteLoss::kNumResiduals;
+    }
+    if (active(LossTerm::kFlow)) {
+      T displacement[2] = {T(0), T(0)};
+      for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < 2; ++k) displacement[k] += tau[i] * u[locals_.displacement + 2 * i + k];
+      }
+      FlowLoss(ray_.flow, weights_.flow)(displacement, residual + row);
+      row += FlowLoss::kNumResiduals;
+    }
+    if (active(LossTerm::kFeatureMatch)) {
+      T expected[3] = {T(0), T(0), T(0)};
+      for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < 3; ++k) expected[k] += tau[i] * u[locals_.canonical + 3 * i + k];
+      }
+      FeatureMatchLoss(weights_.feature_match)(u + locals_.matched, expected, residual + row);
+      row += FeatureMatchLoss::kNumResiduals;
+    }
+    if (active(LossTerm::kCycle2d)) {
+      Cycle2dLoss(ray_.uv, weights_.cycle_2d)(u + locals_.cycle_projection, residual + row);
+      row += Cycle2dLoss::kNumResiduals;
+    }
+    return true;
+  }
+
+ private:
+  const Ray& ray_;
+  const RayLossWeights weights_;
+  const RenderLocals locals_;
+  bool active_[kNumRenderTerms] = {};
+  int num_residuals_ = 0;
+};
+
+}  // namespace banmo

@@ -1,0 +1,97 @@
+// The BANMo model's parameters: every Ceres parameter block lives here and
+// persists across minibatches (DESIGN.md sections 3 and 6).
+//
+// Blocks and their storage (all doubles):
+//   sdf, color, embedding     MLP weights of the canonical fields (field/canonical_field.h)
+//   log_beta (1)              log of VolSDF's Laplace scale
+//   bones (kBoneSize B)       rest bones (deform/bones.h)
+//   appearance[v] (A)         per-video appearance code omega_e (Eq. 1)
+//   per frame (video v, frame t):
+//     root_delta (7)          dG^t, camera_from_root = dG^t * G0^t (Eq. 20)
+//     bones_t (kPoseSize B)   J_b^t posed_from_rest per bone (Eq. 8-10)
+//     intrinsics (4)          [fx, fy, cx, cy] of the video's camera (held
+//                             constant unless a stage frees them)
+//   G0^t (root_init) is data, not a parameter.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "banmo/deform/bones.h"
+#include "banmo/field/canonical_field.h"
+#include "banmo/geometry/camera.h"
+#include "banmo/geometry/se3.h"
+
+namespace banmo {
+
+struct ModelOptions {
+  CanonicalFieldOptions field;    // MLP sizes, encoding, appearance code size
+  int num_bones = 8;              // B; 0 = rigid object (no skinning)
+  double init_bone_scale = 0.15;  // isotropic Gaussian scale of new bones (canonical units)
+  double init_beta = 0.05;        // VolSDF beta at initialisation (canonical units)
+  uint32_t seed = 0;              // MLP initialisation seed
+
+  // Throws InputError naming the field on a violated constraint.
+  void Check() const;
+};
+
+struct FrameParameters {
+  Pose root_delta = PoseIdentity();  // dG^t
+  Pose root_init = PoseIdentity();   // G0^t (data)
+  std::vector<double> bones_t;       // kPoseSize * B
+};
+
+struct VideoParameters {
+  PinholeCamera camera;
+  Eigen::Vector4d intrinsics = Eigen::Vector4d(1, 1, 0, 0);  // parameter block
+  std::vector<double> appearance;                            // A
+  std::vector<FrameParameters> frames;
+};
+
+class Model {
+ public:
+  // frames_per_video[v] frames in video v. Bones start on a small sphere
+  // inside the initial SDF sphere; bone transforms at the identity.
+  Model(const ModelOptions& options, const std::vector<int>& frames_per_video,
+        const std::vector<PinholeCamera>& cameras);
+
+  const ModelOptions& options() const { return options_; }
+  const CanonicalField& field() const { return *field_; }
+  int num_bones() const { return options_.num_bones; }
+  int num_videos() const { return static_cast<int>(videos_.size()); }
+
+  double* sdf() { return sdf_.data(); }
+  double* color() { return color_.data(); }
+  double* embedding() { return embedding_.data(); }
+  double* log_beta() { return &log_beta_; }
+  double* bones() { return bones_.data(); }
+  const double* sdf() const { return sdf_.data(); }
+  const double* color() const { return color_.data(); }
+  const double* embedding() const { return embedding_.data(); }
+  const double* log_beta() const { return &log_beta_; }
+  const double* bones() const { return bones_.data(); }
+  int sdf_size() const { return static_cast<int>(sdf_.size()); }
+  int color_size() const { return static_cast<int>(color_.size()); }
+  int embedding_size() const { return static_cast<int>(embedding_.size()); }
+  int bones_size() const { return static_cast<int>(bones_.size()); }
+  int appearance_size() const { return options_.field.appearance_code_dim; }
+
+  VideoParameters& video(int v) { return videos_[v]; }
+  const VideoParameters& video(int v) const { return videos_[v]; }
+  FrameParameters& frame(int v, int t) { return videos_[v].frames[t]; }
+  const FrameParameters& frame(int v, int t) const { return videos_[v].frames[t]; }
+
+  // camera_from_root G^t = dG^t * G0^t.
+  Pose RootPose(int v, int t) const;
+
+ private:
+  ModelOptions options_;
+  std::unique_ptr<CanonicalField> field_;
+  std::vector<double> sdf_, color_, embedding_, bones_;
+  double log_beta_ = 0.0;
+  std::vector<VideoParameters> videos_;
+};
+
+}  // namespace banmo

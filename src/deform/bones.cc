@@ -1,0 +1,84 @@
+#include "banmo/deform/bones.h"
+
+#include <ceres/jet.h>
+
+#include <cmath>
+
+#include "banmo/util/logging.h"
+
+namespace banmo {
+
+void SkinningWeights(int num_bones, const double* logits, double* weights) {
+  const double max_logit = *std::max_element(logits, logits + num_bones);
+  double denom = 0.0;
+  for (int b = 0; b < num_bones; ++b) {
+    weights[b] = std::exp(logits[b] - max_logit);
+    denom += weights[b];
+  }
+  for (int b = 0; b < num_bones; ++b) weights[b] /= denom;
+}
+
+void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bones,
+                      const double* bones_t, const double* x, double* out, WarpJacobian* jacobian) {
+  jacobian->d_x.setZero();
+  jacobian->d_bones.setZero(3, kBoneSize * num_bones);
+  jacobian->d_bones_t.setZero(3, kPoseSize * num_bones);
+  if (num_bones == 0) {
+    std::copy(x, x + 3, out);
+    jacobian->d_x.setIdentity();
+    return;
+  }
+  // Jet directions: [x (3), bone (10), bone_t (7)].
+  constexpr int kDim = 3 + kBoneSize + kPoseSize;
+  using J = ceres::Jet<double, kDim>;
+  std::vector<double> logits(num_bones);
+  Eigen::Matrix<double, 3, Eigen::Dynamic> points(3, num_bones);
+  // Per-bone Jacobians of (logit, point) wrt the 20 local directions.
+  std::vector<Eigen::Matrix<double, 4, kDim>> local(num_bones);
+  J xj[3];
+  for (int k = 0; k < 3; ++k) xj[k] = J(x[k], k);
+  for (int b = 0; b < num_bones; ++b) {
+    J bone[kBoneSize], pose[kPoseSize];
+    for (int k = 0; k < kBoneSize; ++k) bone[k] = J(bones[kBoneSize * b + k], 3 + k);
+    for (int k = 0; k < kPoseSize; ++k) {
+      pose[k] = J(bones_t[kPoseSize * b + k], 3 + kBoneSize + k);
+    }
+    J logit, p[3];
+    if (direction == WarpDirection::kBackward) {
+      BackwardBoneTerm(bone, pose, xj, &logit, p);
+    } else {
+      ForwardBoneTerm(bone, pose, xj, &logit, p);
+    }
+    logits[b] = logit.a;
+    local[b].row(0) = logit.v.transpose();
+    for (int k = 0; k < 3; ++k) {
+      points(k, b) = p[k].a;
+      local[b].row(1 + k) = p[k].v.transpose();
+    }
+  }
+  std::vector<double> w(num_bones);
+  SkinningWeights(num_bones, logits.data(), w.data());
+  const Eigen::Vector3d blended = points * Eigen::Map<const Eigen::VectorXd>(w.data(), num_bones);
+  std::copy(blended.data(), blended.data() + 3, out);
+  for (int b = 0; b < num_bones; ++b) {
+    // d out / d (locals of bone b) = (p_b - out) w_b dl_b + w_b dp_b.
+    const Eigen::Matrix<double, 3, kDim> d_local =
+        w[b] * ((points.col(b) - blended) * local[b].row(0) + local[b].bottomRows<3>());
+    jacobian->d_x += d_local.leftCols<3>();
+    jacobian->d_bones.middleCols<kBoneSize>(kBoneSize * b) = d_local.middleCols<kBoneSize>(3);
+    jacobian->d_bones_t.middleCols<kPoseSize>(kPoseSize * b) = d_local.rightCols<kPoseSize>();
+  }
+}
+
+void InitializeBones(const std::vector<Eigen::Vector3d>& centres, double scale, double* bones) {
+  CHECK_GT(scale, 0.0);
+  for (size_t b = 0; b < centres.size(); ++b) {
+    double* bone = bones + kBoneSize * b;
+    for (int k = 0; k < 3; ++k) bone[kBoneCenter + k] = centres[b][k];
+    bone[kBoneQw] = 1.0;
+    bone[kBoneQw + 1] = bone[kBoneQw + 2] = bone[kBoneQw + 3] = 0.0;
+    for (int k = 0; k < 3; ++k) bone[kBoneLogScale + k] = std::log(scale);
+  }
+}
+
+}  // namespace banmo

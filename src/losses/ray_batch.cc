@@ -1,0 +1,763 @@
+#include "banmo/losses/ray_batch.h"
+
+#include <ceres/jet.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "banmo/deform/bones.h"
+#include "banmo/losses/ray_functors.h"
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+#include "banmo/util/parallel.h"
+
+namespace banmo {
+namespace {
+
+using Mat37 = Eigen::Matrix<double, 3, kPoseSize>;
+using Mat34 = Eigen::Matrix<double, 3, kIntrinsicsSize>;
+
+// Jets over [x (3), root_delta (7), intrinsics (4)]: the locals of the
+// projection and 3D-cycle stages.
+constexpr int kPointPoseIntrinsics = 3 + kPoseSize + kIntrinsicsSize;
+// Jets over [root_delta (7), intrinsics (4)]: sample placement, view direction.
+constexpr int kPoseIntrinsics = kPoseSize + kIntrinsicsSize;
+
+template <int N>
+using JetN = ceres::Jet<double, N>;
+
+template <int N>
+void SeedJets(const double* values, int count, int first_direction, JetN<N>* out) {
+  for (int k = 0; k < count; ++k) out[k] = JetN<N>(values[k], first_direction + k);
+}
+
+// Values and Jacobian (num_out x u.size()) of f(u), by forward-mode Jets in
+// chunks of kStride directions (like ceres::DynamicAutoDiffCostFunction).
+template <int kStride, typename Functor>
+void ChunkedJacobian(const Functor& f, const std::vector<double>& u, int num_out, double* values,
+                     RowMajorMatrix* jacobian) {
+  using J = JetN<kStride>;
+  const int n = static_cast<int>(u.size());
+  std::vector<J> uj(n), out(num_out);
+  jacobian->resize(num_out, n);
+  for (int start = 0; start < n; start += kStride) {
+    for (int i = 0; i < n; ++i) uj[i] = J(u[i]);
+    const int end = std::min(n, start + kStride);
+    for (int i = start; i < end; ++i) uj[i].v[i - start] = 1.0;
+    f(uj.data(), out.data());
+    for (int r = 0; r < num_out; ++r) {
+      values[r] = out[r].a;
+      for (int i = start; i < end; ++i) (*jacobian)(r, i) = out[r].v[i - start];
+    }
+  }
+}
+
+// Projection of a root-frame point through a frame's root pose, with the
+// Jacobian wrt [x (3), root_delta (7), intrinsics (4)].
+void ProjectWithJacobian(const double* root_delta, const double* root_init,
+                         const double* intrinsics, const double* x_in_root, double* uv,
+                         Eigen::Matrix<double, 2, kPointPoseIntrinsics>* jacobian) {
+  using J = JetN<kPointPoseIntrinsics>;
+  J x[3], pose[kPoseSize], k[kIntrinsicsSize], out[2];
+  SeedJets(x_in_root, 3, 0, x);
+  SeedJets(root_delta, kPoseSize, 3, pose);
+  SeedJets(intrinsics, kIntrinsicsSize, 3 + kPoseSize, k);
+  ProjectRootPoint(pose, root_init, k, x, out);
+  for (int r = 0; r < 2; ++r) {
+    uv[r] = out[r].a;
+    jacobian->row(r) = out[r].v.transpose();
+  }
+}
+
+// Adds a (R x cols) += lhs (R x m) * rhs (m x cols) into a block of a
+// Jacobian when the block exists.
+template <typename Lhs, typename Rhs>
+void AddProduct(RowMajorMatrix* jac, int row0, const Lhs& lhs, const Rhs& rhs) {
+  if (jac->cols() == 0) return;
+  jac->block(row0, 0, lhs.rows(), jac->cols()).noalias() += lhs * rhs;
+}
+
+}  // namespace
+
+const char* RayBlockName(RayBlock block) {
+  static const char* kNames[kNumRayBlocks] = {
+      "sdf",   "color",   "embedding",  "log_beta",     "appearance",     "root",
+      "bones", "bones_t", "intrinsics", "partner_root", "partner_bones_t"};
+  return kNames[block];
+}
+
+void RayBatchOptions::Check() const {
+  if (match_top_k < 1) ThrowInputError("match_top_k: expected >= 1, got ", match_top_k);
+  if (!matcher.Check()) ThrowInputError("matcher: invalid embedding matcher options");
+  for (int t = 0; t < kNumLossTerms; ++t) {
+    const double w = weights.Weight(static_cast<LossTerm>(t));
+    if (!(w >= 0.0) || !std::isfinite(w)) {
+      ThrowInputError("weights.", LossTermName(static_cast<LossTerm>(t)),
+                      ": expected a finite weight >= 0");
+    }
+  }
+}
+
+// Per-ray intermediate values of one pipeline run.
+struct RayScratch {
+  int num_samples = 0;
+  int field_offset = 0;  // first column of the ray's samples in the field batch
+  int match_offset = 0;  // first column of the ray's K grid points in the embedding batch
+  int num_match = 0;     // K (0 if the ray has no feature terms)
+  int render_rows = 0;
+  Eigen::Matrix3Xd x_root, x_star;
+  std::vector<Mat37> dxroot_droot;
+  std::vector<Mat34> dxroot_dk;
+  std::vector<WarpJacobian> backward;
+  Eigen::Vector3d view = Eigen::Vector3d::Zero();
+  Mat37 dview_droot = Mat37::Zero();
+  Mat34 dview_dk = Mat34::Zero();
+  Eigen::Vector3d x_hat = Eigen::Vector3d::Zero();
+  RowMajorMatrix a_sdf, a_rgb, a_xhat;  // adjoints for the batched MLP backward
+};
+
+RayBatch::RayBatch(Model* model, const RayBatchOptions& options)
+    : model_(model), options_(options) {
+  CHECK(model_ != nullptr);
+  options_.Check();
+}
+
+RayBatch::~RayBatch() = default;
+
+void RayBatch::SetMatchGrid(const Eigen::Matrix3Xd& grid) {
+  grid_ = grid;
+  cache_valid_ = false;
+}
+
+void RayBatch::SetRays(std::vector<Ray> rays) {
+  rays_ = std::move(rays);
+  cache_valid_ = false;
+  evaluations_.clear();
+  bool need_match = false;
+  for (const Ray& ray : rays_) {
+    const bool uses = ray.HasTerm(LossTerm::kFeatureMatch, options_.weights) ||
+                      ray.HasTerm(LossTerm::kCycle2d, options_.weights);
+    need_match = need_match || (uses && ray.match_indices.empty());
+  }
+  if (!need_match) return;
+  CHECK_GT(grid_.cols(), 0) << "SetMatchGrid must be called before rays with features";
+  const CanonicalField& field = model_->field();
+  EmbeddingBatch grid_batch;
+  grid_batch.x = grid_;
+  field.ForwardEmbeddingBatch(model_->embedding(), &grid_batch, false);
+  EmbeddingMatcher matcher(options_.matcher);
+  matcher.Build(grid_, grid_batch.psi);
+  ParallelFor(num_rays(), [&](int begin, int end) {
+    MatchResult result;
+    for (int r = begin; r < end; ++r) {
+      Ray& ray = rays_[r];
+      const bool uses = ray.HasTerm(LossTerm::kFeatureMatch, options_.weights) ||
+                        ray.HasTerm(LossTerm::kCycle2d, options_.weights);
+      if (!uses || !ray.match_indices.empty()) continue;
+      matcher.Match(Eigen::VectorXd(ray.feature), options_.match_top_k, &result);
+      ray.match_indices = result.indices;
+    }
+  });
+}
+
+RayParameters RayBatch::ModelParameters(const Ray& ray) const {
+  RayParameters p;
+  Model& m = *model_;
+  const bool bones = m.num_bones() > 0;
+  p.block[kBlockSdf] = m.sdf();
+  p.block[kBlockColor] = m.color();
+  p.block[kBlockEmbedding] = m.embedding();
+  p.block[kBlockLogBeta] = m.log_beta();
+  p.block[kBlockAppearance] =
+      m.appearance_size() > 0 ? m.video(ray.video).appearance.data() : nullptr;
+  const FrameParameters& f = m.frame(ray.video, ray.frame);
+  p.block[kBlockRoot] = f.root_delta.data();
+  p.root_init = f.root_init.data();
+  p.block[kBlockBones] = bones ? m.bones() : nullptr;
+  p.block[kBlockBonesT] = bones ? f.bones_t.data() : nullptr;
+  p.block[kBlockIntrinsics] = m.video(ray.video).intrinsics.data();
+  if (ray.HasTerm(LossTerm::kFlow, options_.weights)) {
+    const FrameParameters& g = m.frame(ray.video, ray.partner_frame);
+    p.block[kBlockPartnerRoot] = g.root_delta.data();
+    p.partner_root_init = g.root_init.data();
+    p.block[kBlockPartnerBonesT] = bones ? g.bones_t.data() : nullptr;
+  }
+  return p;
+}
+
+std::vector<RayBlock> RayBatch::TermBlocks(int index, LossTerm term) const {
+  const Ray& ray = rays_[index];
+  const RayParameters p = ModelParameters(ray);
+  std::vector<RayBlock> wanted;
+  switch (term) {
+    case LossTerm::kRgb:
+      wanted = {kBlockSdf,  kBlockColor, kBlockLogBeta, kBlockAppearance,
+                kBlockRoot, kBlockBones, kBlockBonesT,  kBlockIntrinsics};
+      break;
+    case LossTerm::kSilhouette:
+      wanted = {kBlockSdf, kBlockLogBeta, kBlockRoot, kBlockBones, kBlockBonesT, kBlockIntrinsics};
+      break;
+    case LossTerm::kFlow:
+      wanted = {kBlockSdf,    kBlockLogBeta,    kBlockRoot,        kBlockBones,
+                kBlockBonesT, kBlockIntrinsics, kBlockPartnerRoot, kBlockPartnerBonesT};
+      break;
+    case LossTerm::kFeatureMatch:
+      wanted = {kBlockSdf,   kBlockEmbedding, kBlockLogBeta,   kBlockRoot,
+                kBlockBones, kBlockBonesT,    kBlockIntrinsics};
+      break;
+    case LossTerm::kCycle2d:
+      wanted = {kBlockEmbedding, kBlockRoot, kBlockBones, kBlockBonesT, kBlockIntrinsics};
+      break;
+    case LossTerm::kCycle3d:
+      wanted = {kBlockRoot, kBlockBones, kBlockBonesT, kBlockIntrinsics};
+      break;
+  }
+  std::vector<RayBlock> present;
+  for (RayBlock b : wanted) {
+    if (p.block[b] != nullptr) present.push_back(b);
+  }
+  return present;
+}
+
+std::vector<double*> RayBatch::TermParameterBlocks(int index, LossTerm term) const {
+  const RayParameters p = ModelParameters(rays_[index]);
+  std::vector<double*> out;
+  for (RayBlock b : TermBlocks(index, term)) out.push_back(const_cast<double*>(p.block[b]));
+  return out;
+}
+
+void RayBatch::PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) {
+  if (!new_evaluation_point && cache_valid_ && (cache_has_jacobians_ || !evaluate_jacobians)) {
+    return;
+  }
+  EvaluateAll(evaluate_jacobians);
+}
+
+void RayBatch::EvaluateAll(bool jacobians) {
+  std::vector<const Ray*> rays(rays_.size());
+  std::vector<RayParameters> params(rays_.size());
+  for (size_t r = 0; r < rays_.size(); ++r) {
+    rays[r] = &rays_[r];
+    params[r] = ModelParameters(rays_[r]);
+  }
+  EvaluateRays(rays, params, jacobians, &evaluations_);
+  cache_valid_ = true;
+  cache_has_jacobians_ = jacobians;
+}
+
+namespace {
+
+// Block sizes of a ray's parameters.
+std::array<int, kNumRayBlocks> BlockSizes(const Model& m, const RayParameters& p) {
+  std::array<int, kNumRayBlocks> s{};
+  s[kBlockSdf] = m.sdf_size();
+  s[kBlockColor] = m.color_size();
+  s[kBlockEmbedding] = m.embedding_size();
+  s[kBlockLogBeta] = 1;
+  s[kBlockAppearance] = m.appearance_size();
+  s[kBlockRoot] = kPoseSize;
+  s[kBlockBones] = m.bones_size();
+  s[kBlockBonesT] = kPoseSize * m.num_bones();
+  s[kBlockIntrinsics] = kIntrinsicsSize;
+  s[kBlockPartnerRoot] = kPoseSize;
+  s[kBlockPartnerBonesT] = kPoseSize * m.num_bones();
+  for (int b = 0; b < kNumRayBlocks; ++b) {
+    if (p.block[b] == nullptr) s[b] = 0;
+  }
+  return s;
+}
+
+}  // namespace
+
+void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
+                            const std::vector<RayParameters>& params, bool jacobians,
+                            std::vector<RayEvaluation>* out) const {
+  CHECK_EQ(rays.size(), params.size());
+  const int num_rays = static_cast<int>(rays.size());
+  out->assign(num_rays, RayEvaluation());
+  if (num_rays == 0) return;
+  const Model& model = *model_;
+  const CanonicalField& field = model.field();
+  const RayLossWeights& weights = options_.weights;
+  const int B = model.num_bones();
+  const int A = model.appearance_size();
+  const double* sdf_params = params[0].block[kBlockSdf];
+  const double* color_params = params[0].block[kBlockColor];
+  const double* embedding_params = params[0].block[kBlockEmbedding];
+  for (const RayParameters& p : params) {
+    CHECK(p.block[kBlockSdf] == sdf_params && p.block[kBlockColor] == color_params &&
+          p.block[kBlockEmbedding] == embedding_params)
+        << "rays of one EvaluateRays call must share the MLP blocks";
+  }
+
+  // Layout of the batched field and embedding passes.
+  std::vector<RayScratch> scratch(num_rays);
+  std::vector<int> field_groups(num_rays + 1, 0), match_groups(num_rays + 1, 0);
+  for (int r = 0; r < num_rays; ++r) {
+    const Ray& ray = *rays[r];
+    RayScratch& s = scratch[r];
+    s.num_samples = ray.NumSamples();
+    s.field_offset = field_groups[r];
+    field_groups[r + 1] = field_groups[r] + s.num_samples;
+    const bool match =
+        ray.HasTerm(LossTerm::kFeatureMatch, weights) || ray.HasTerm(LossTerm::kCycle2d, weights);
+    if (match) {
+      CHECK(!ray.match_indices.empty()) << "feature ray without match indices (call SetRays)";
+      CHECK_GT(grid_.cols(), 0);
+    }
+    s.num_match = match ? static_cast<int>(ray.match_indices.size()) : 0;
+    s.match_offset = match_groups[r];
+    match_groups[r + 1] = match_groups[r] + s.num_match;
+  }
+  const int total_samples = field_groups[num_rays];
+  const int total_match = match_groups[num_rays];
+
+  FieldBatch fb;
+  fb.x.resize(3, total_samples);
+  fb.view_dir.resize(3, total_samples);
+  fb.appearance.resize(A, total_samples);
+
+  // Pass 1 (per ray): sample placement, view direction, backward warp.
+  ParallelFor(num_rays, [&](int begin, int end) {
+    for (int r = begin; r < end; ++r) {
+      const Ray& ray = *rays[r];
+      const RayParameters& p = params[r];
+      RayScratch& s = scratch[r];
+      const int n = s.num_samples;
+      const double* root = p.block[kBlockRoot];
+      const double* intr = p.block[kBlockIntrinsics];
+      s.x_root.resize(3, n);
+      s.x_star.resize(3, n);
+      if (jacobians) {
+        s.dxroot_droot.resize(n);
+        s.dxroot_dk.resize(n);
+        s.backward.resize(n);
+      }
+      for (int i = 0; i < n; ++i) {
+        const double depth = ray.samples.depths[i];
+        if (jacobians) {
+          using J = JetN<kPoseIntrinsics>;
+          J pose[kPoseSize], k[kIntrinsicsSize], x[3];
+          SeedJets(root, kPoseSize, 0, pose);
+          SeedJets(intr, kIntrinsicsSize, kPoseSize, k);
+          SampleInRoot(pose, p.root_init, k, ray.uv.data(), depth, x);
+          for (int c = 0; c < 3; ++c) {
+            s.x_root(c, i) = x[c].a;
+            s.dxroot_droot[i].row(c) = x[c].v.head<kPoseSize>().transpose();
+            s.dxroot_dk[i].row(c) = x[c].v.tail<kIntrinsicsSize>().transpose();
+          }
+          WarpWithJacobian(WarpDirection::kBackward, B, p.block[kBlockBones], p.block[kBlockBonesT],
+                           s.x_root.col(i).data(), s.x_star.col(i).data(), &s.backward[i]);
+        } else {
+          SampleInRoot(root, p.root_init, intr, ray.uv.data(), depth, s.x_root.col(i).data());
+          BackwardWarp(B, p.block[kBlockBones], p.block[kBlockBonesT], s.x_root.col(i).data(),
+                       s.x_star.col(i).data());
+        }
+      }
+      if (jacobians) {
+        using J = JetN<kPoseIntrinsics>;
+        J pose[kPoseSize], k[kIntrinsicsSize], v[3];
+        SeedJets(root, kPoseSize, 0, pose);
+        SeedJets(intr, kIntrinsicsSize, kPoseSize, k);
+        ViewDirectionInRoot(pose, p.root_init, k, ray.uv.data(), v);
+        for (int c = 0; c < 3; ++c) {
+          s.view[c] = v[c].a;
+          s.dview_droot.row(c) = v[c].v.head<kPoseSize>().transpose();
+          s.dview_dk.row(c) = v[c].v.tail<kIntrinsicsSize>().transpose();
+        }
+      } else {
+        ViewDirectionInRoot(root, p.root_init, intr, ray.uv.data(), s.view.data());
+      }
+      fb.x.middleCols(s.field_offset, n) = s.x_star;
+      fb.view_dir.middleCols(s.field_offset, n) = s.view.replicate(1, n);
+      if (A > 0) {
+        const Eigen::Map<const Eigen::VectorXd> code(p.block[kBlockAppearance], A);
+        fb.appearance.middleCols(s.field_offset, n) = code.replicate(1, n);
+      }
+    }
+  });
+
+  // Pass 2 (batched): canonical fields at all samples; embeddings at the
+  // rays' match candidates and the soft-argmax X_hat* (Eq. 15).
+  field.ForwardBatch(sdf_params, color_params, &fb, jacobians);
+  EmbeddingBatch eb;
+  if (total_match > 0) {
+    eb.x.resize(3, total_match);
+    for (int r = 0; r < num_rays; ++r) {
+      const Ray& ray = *rays[r];
+      for (int k = 0; k < scratch[r].num_match; ++k) {
+        eb.x.col(scratch[r].match_offset + k) = grid_.col(ray.match_indices[k]);
+      }
+    }
+    field.ForwardEmbeddingBatch(embedding_params, &eb, false);
+    for (int r = 0; r < num_rays; ++r) {
+      const RayScratch& s = scratch[r];
+      if (s.num_match == 0) continue;
+      const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
+      const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
+      SoftArgmax(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
+                 options_.matcher.temperature, scratch[r].x_hat.data());
+    }
+  }
+
+  // Pass 3 (per ray): forward warps, projections, the render functor with
+  // Jets over its locals, the 3D cycle, and the reverse chain to the small
+  // parameter blocks.
+  ParallelFor(num_rays, [&](int begin, int end) {
+    for (int r = begin; r < end; ++r) {
+      const Ray& ray = *rays[r];
+      const RayParameters& p = params[r];
+      RayScratch& s = scratch[r];
+      RayEvaluation& ev = (*out)[r];
+      const int n = s.num_samples;
+      const double* bones = p.block[kBlockBones];
+      const double* intr = p.block[kBlockIntrinsics];
+      const RayRenderFunctor render(ray, weights);
+      const RenderLocals& L = render.locals();
+      const int R = render.num_residuals();
+      s.render_rows = R;
+      const bool cycle3d = ray.HasTerm(LossTerm::kCycle3d, weights);
+      const int total_rows = R + (cycle3d ? 3 * n : 0);
+      ev.residuals.assign(total_rows, 0.0);
+      ev.term_row.fill(-1);
+      {
+        int row = 0;
+        for (int t = 0; t < kNumRenderTerms; ++t) {
+          if (render.active(static_cast<LossTerm>(t))) {
+            ev.term_row[t] = row;
+            row += LossTermResiduals(static_cast<LossTerm>(t), n);
+          }
+        }
+        if (cycle3d) ev.term_row[static_cast<int>(LossTerm::kCycle3d)] = R;
+      }
+      const std::array<int, kNumRayBlocks> sizes = BlockSizes(model, p);
+      if (jacobians) {
+        ev.has_jacobians = true;
+        for (int b = 0; b < kNumRayBlocks; ++b) {
+          const bool mlp = b == kBlockSdf || b == kBlockColor || b == kBlockEmbedding;
+          ev.jacobians[b].setZero(mlp ? R : total_rows, sizes[b]);
+        }
+      }
+
+      // Locals of the render functor.
+      std::vector<double> u(L.size, 0.0);
+      for (int i = 0; i < n; ++i) {
+        const int col = s.field_offset + i;
+        u[L.sdf + i] = fb.sdf(col);
+        if (L.has_rgb) {
+          for (int c = 0; c < 3; ++c) u[L.rgb + 3 * i + c] = fb.rgb(c, col);
+        }
+        if (L.has_matched) {
+          for (int c = 0; c < 3; ++c) u[L.canonical + 3 * i + c] = s.x_star(c, i);
+        }
+      }
+      u[L.log_beta] = *p.block[kBlockLogBeta];
+      // Flow: each X*_i pushed with the forward warp of t' and projected (Eq. 6).
+      std::vector<WarpJacobian> flow_warp(L.has_displacement && jacobians ? n : 0);
+      std::vector<Eigen::Matrix<double, 2, kPointPoseIntrinsics>> flow_proj(flow_warp.size());
+      if (L.has_displacement) {
+        for (int i = 0; i < n; ++i) {
+          Eigen::Vector3d x_t2;
+          Eigen::Vector2d uv2;
+          if (jacobians) {
+            WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockPartnerBonesT],
+                             s.x_star.col(i).data(), x_t2.data(), &flow_warp[i]);
+            ProjectWithJacobian(p.block[kBlockPartnerRoot], p.partner_root_init, intr, x_t2.data(),
+                                uv2.data(), &flow_proj[i]);
+          } else {
+            ForwardWarp(B, bones, p.block[kBlockPartnerBonesT], s.x_star.col(i).data(),
+                        x_t2.data());
+            ProjectRootPoint(p.block[kBlockPartnerRoot], p.partner_root_init, intr, x_t2.data(),
+                             uv2.data());
+          }
+          u[L.displacement + 2 * i + 0] = uv2[0] - ray.uv[0];
+          u[L.displacement + 2 * i + 1] = uv2[1] - ray.uv[1];
+        }
+      }
+      if (L.has_matched) {
+        for (int c = 0; c < 3; ++c) u[L.matched + c] = s.x_hat[c];
+      }
+      // 2D cycle: X_hat* pushed forward to t and projected (Eq. 18).
+      WarpJacobian cycle_warp;
+      Eigen::Matrix<double, 2, kPointPoseIntrinsics> cycle_proj;
+      if (L.has_cycle) {
+        Eigen::Vector3d x_t;
+        Eigen::Vector2d uv_c;
+        if (jacobians) {
+          WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT], s.x_hat.data(),
+                           x_t.data(), &cycle_warp);
+          ProjectWithJacobian(p.block[kBlockRoot], p.root_init, intr, x_t.data(), uv_c.data(),
+                              &cycle_proj);
+        } else {
+          ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_hat.data(), x_t.data());
+          ProjectRootPoint(p.block[kBlockRoot], p.root_init, intr, x_t.data(), uv_c.data());
+        }
+        u[L.cycle_projection + 0] = uv_c[0];
+        u[L.cycle_projection + 1] = uv_c[1];
+      }
+
+      RowMajorMatrix D;  // d residual / d u  (R x |u|)
+      if (R > 0) {
+        if (jacobians) {
+          ChunkedJacobian<32>(render, u, R, ev.residuals.data(), &D);
+        } else {
+          render(u.data(), ev.residuals.data());
+        }
+      }
+
+      // 3D cycle rows (Eq. 19) with tau held constant.
+      std::vector<double> tau(n);
+      if (cycle3d) {
+        std::vector<double> sdf(n);
+        for (int i = 0; i < n; ++i) sdf[i] = fb.sdf(s.field_offset + i);
+        CompositeWeights(n, sdf.data(), *p.block[kBlockLogBeta], ray.samples.deltas.data(),
+                         tau.data());
+      }
+
+      if (!jacobians) {
+        if (cycle3d) {
+          for (int i = 0; i < n; ++i) {
+            Eigen::Vector3d q;
+            ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_star.col(i).data(), q.data());
+            Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), p.block[kBlockRoot], p.root_init,
+                            intr, ray.uv.data(), ray.samples.depths[i], q.data(),
+                            ev.residuals.data() + R + 3 * i);
+          }
+        }
+        continue;
+      }
+
+      // ---- Reverse chain (render rows). ----
+      auto& jac = ev.jacobians;
+      RowMajorMatrix a_xstar = RowMajorMatrix::Zero(R, 3 * n);
+      Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> a_view =
+          Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>::Zero(R, 3);
+      s.a_sdf = RowMajorMatrix::Zero(R, n);
+      s.a_rgb = RowMajorMatrix::Zero(R, 3 * n);
+      s.a_xhat = RowMajorMatrix::Zero(R, 3);
+      if (R > 0) {
+        s.a_sdf = D.middleCols(L.sdf, n);
+        if (L.has_rgb) s.a_rgb = D.middleCols(L.rgb, 3 * n);
+        if (L.has_matched) {
+          a_xstar += D.middleCols(L.canonical, 3 * n);
+          s.a_xhat += D.middleCols(L.matched, 3);
+        }
+        jac[kBlockLogBeta].topRows(R).col(0) += D.col(L.log_beta);
+      }
+      // Field inputs: X*_i, view direction, appearance code.
+      for (int i = 0; i < n && R > 0; ++i) {
+        const int col = s.field_offset + i;
+        a_xstar.middleCols<3>(3 * i).noalias() += s.a_sdf.col(i) * fb.dsdf_dx.col(col).transpose();
+        if (L.has_rgb) {
+          const auto a_rgb_i = s.a_rgb.middleCols<3>(3 * i);
+          a_xstar.middleCols<3>(3 * i).noalias() += a_rgb_i * fb.drgb_dx.middleCols<3>(3 * col);
+          if (field.options().use_view_direction) {
+            a_view.noalias() += a_rgb_i * fb.drgb_dview.middleCols<3>(3 * col);
+          }
+          if (A > 0) {
+            AddProduct(&jac[kBlockAppearance], 0, a_rgb_i,
+                       fb.drgb_dappearance.middleCols(A * col, A));
+          }
+        }
+      }
+      // Flow: displacement_i = Pi_{t'}(G^{t'} W^{t',->}(X*_i)) - x.
+      if (L.has_displacement) {
+        for (int i = 0; i < n; ++i) {
+          const auto a_disp = D.middleCols<2>(L.displacement + 2 * i);
+          const Eigen::Matrix<double, Eigen::Dynamic, 3> a_p = a_disp * flow_proj[i].leftCols<3>();
+          AddProduct(&jac[kBlockPartnerRoot], 0, a_disp, flow_proj[i].middleCols<kPoseSize>(3));
+          AddProduct(&jac[kBlockIntrinsics], 0, a_disp, flow_proj[i].rightCols<kIntrinsicsSize>());
+          a_xstar.middleCols<3>(3 * i).noalias() += a_p * flow_warp[i].d_x;
+          AddProduct(&jac[kBlockBones], 0, a_p, flow_warp[i].d_bones);
+          AddProduct(&jac[kBlockPartnerBonesT], 0, a_p, flow_warp[i].d_bones_t);
+        }
+      }
+      // 2D cycle: Pi_t(G^t W^{t,->}(X_hat*)).
+      if (L.has_cycle) {
+        const auto a_c = D.middleCols<2>(L.cycle_projection);
+        const Eigen::Matrix<double, Eigen::Dynamic, 3> a_p = a_c * cycle_proj.leftCols<3>();
+        AddProduct(&jac[kBlockRoot], 0, a_c, cycle_proj.middleCols<kPoseSize>(3));
+        AddProduct(&jac[kBlockIntrinsics], 0, a_c, cycle_proj.rightCols<kIntrinsicsSize>());
+        s.a_xhat.noalias() += a_p * cycle_warp.d_x;
+        AddProduct(&jac[kBlockBones], 0, a_p, cycle_warp.d_bones);
+        AddProduct(&jac[kBlockBonesT], 0, a_p, cycle_warp.d_bones_t);
+      }
+      // Backward warp and sample placement of every X*_i.
+      for (int i = 0; i < n && R > 0; ++i) {
+        const auto a_x = a_xstar.middleCols<3>(3 * i);
+        const Eigen::Matrix<double, Eigen::Dynamic, 3> a_root_pt = a_x * s.backward[i].d_x;
+        AddProduct(&jac[kBlockBones], 0, a_x, s.backward[i].d_bones);
+        AddProduct(&jac[kBlockBonesT], 0, a_x, s.backward[i].d_bones_t);
+        AddProduct(&jac[kBlockRoot], 0, a_root_pt, s.dxroot_droot[i]);
+        AddProduct(&jac[kBlockIntrinsics], 0, a_root_pt, s.dxroot_dk[i]);
+      }
+      if (R > 0) {
+        AddProduct(&jac[kBlockRoot], 0, a_view, s.dview_droot);
+        AddProduct(&jac[kBlockIntrinsics], 0, a_view, s.dview_dk);
+      }
+
+      // ---- 3D cycle rows: 3 per sample, small blocks only. ----
+      if (cycle3d) {
+        using J = JetN<kPointPoseIntrinsics>;
+        for (int i = 0; i < n; ++i) {
+          const int row0 = R + 3 * i;
+          Eigen::Vector3d q;
+          WarpJacobian qj;
+          WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT],
+                           s.x_star.col(i).data(), q.data(), &qj);
+          J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
+          SeedJets(q.data(), 3, 0, qj_jet);
+          SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
+          SeedJets(intr, kIntrinsicsSize, 3 + kPoseSize, k);
+          Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), pose, p.root_init, k,
+                          ray.uv.data(), ray.samples.depths[i], qj_jet, res);
+          Eigen::Matrix<double, 3, kPointPoseIntrinsics> E;
+          for (int c = 0; c < 3; ++c) {
+            ev.residuals[row0 + c] = res[c].a;
+            E.row(c) = res[c].v.transpose();
+          }
+          const Eigen::Matrix3d a_q = E.leftCols<3>();
+          AddProduct(&jac[kBlockRoot], row0, E.middleCols<kPoseSize>(3),
+                     Eigen::Matrix<double, kPoseSize, kPoseSize>::Identity());
+          AddProduct(&jac[kBlockIntrinsics], row0, E.rightCols<kIntrinsicsSize>(),
+                     Eigen::Matrix<double, kIntrinsicsSize, kIntrinsicsSize>::Identity());
+          const Eigen::Matrix3d a_x = a_q * qj.d_x;
+          AddProduct(&jac[kBlockBones], row0, a_q, qj.d_bones);
+          AddProduct(&jac[kBlockBonesT], row0, a_q, qj.d_bones_t);
+          const Eigen::Matrix3d a_root_pt = a_x * s.backward[i].d_x;
+          AddProduct(&jac[kBlockBones], row0, a_x, s.backward[i].d_bones);
+          AddProduct(&jac[kBlockBonesT], row0, a_x, s.backward[i].d_bones_t);
+          AddProduct(&jac[kBlockRoot], row0, a_root_pt, s.dxroot_droot[i]);
+          AddProduct(&jac[kBlockIntrinsics], row0, a_root_pt, s.dxroot_dk[i]);
+        }
+      }
+    }
+  });
+  if (!jacobians) return;
+
+  // Pass 4 (batched): MLP weight Jacobians, one backward pass per residual
+  // row over the whole minibatch, grouped per ray.
+  int max_rows = 0;
+  for (const RayScratch& s : scratch) max_rows = std::max(max_rows, s.render_rows);
+  Eigen::VectorXd d_sdf(total_samples);
+  Eigen::Matrix3Xd d_rgb(3, total_samples);
+  Eigen::MatrixXd d_sdf_params, d_color_params, d_embedding_params;
+  Eigen::MatrixXd d_psi(kEmbeddingFeatureDim, total_match);
+  for (int k = 0; k < max_rows; ++k) {
+    d_sdf.setZero();
+    d_rgb.setZero();
+    bool any_field = false;
+    bool any_match = false;
+    for (int r = 0; r < num_rays; ++r) {
+      const RayScratch& s = scratch[r];
+      if (k >= s.render_rows) continue;
+      for (int i = 0; i < s.num_samples; ++i) {
+        d_sdf(s.field_offset + i) = s.a_sdf(k, i);
+        for (int c = 0; c < 3; ++c) d_rgb(c, s.field_offset + i) = s.a_rgb(k, 3 * i + c);
+      }
+      any_field = any_field || s.a_sdf.row(k).squaredNorm() > 0 || s.a_rgb.row(k).squaredNorm() > 0;
+      any_match = any_match || (s.num_match > 0 && s.a_xhat.row(k).squaredNorm() > 0);
+    }
+    if (any_field) {
+      field.BackwardBatch(sdf_params, color_params, fb, d_sdf, d_rgb, field_groups, &d_sdf_params,
+                          &d_color_params);
+      for (int r = 0; r < num_rays; ++r) {
+        if (k >= scratch[r].render_rows) continue;
+        (*out)[r].jacobians[kBlockSdf].row(k) = d_sdf_params.col(r).transpose();
+        (*out)[r].jacobians[kBlockColor].row(k) = d_color_params.col(r).transpose();
+      }
+    }
+    if (any_match) {
+      d_psi.setZero();
+      for (int r = 0; r < num_rays; ++r) {
+        const RayScratch& s = scratch[r];
+        if (k >= s.render_rows || s.num_match == 0) continue;
+        const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
+        const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
+        const Eigen::Vector3d a = s.a_xhat.row(k).transpose();
+        Eigen::MatrixXd dpsi;
+        SoftArgmaxBackward(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
+                           options_.matcher.temperature, a.data(), &dpsi, nullptr);
+        d_psi.middleCols(s.match_offset, s.num_match) = dpsi;
+      }
+      field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, match_groups, &d_embedding_params);
+      for (int r = 0; r < num_rays; ++r) {
+        if (k >= scratch[r].render_rows || scratch[r].num_match == 0) continue;
+        (*out)[r].jacobians[kBlockEmbedding].row(k) = d_embedding_params.col(r).transpose();
+      }
+    }
+  }
+}
+
+}  // namespace banmo
+
+namespace banmo {
+namespace {
+
+// One loss term of one ray. Residuals and Jacobians come from the batch's
+// cache when Ceres evaluates at the point the batch prepared; otherwise the
+// ray is evaluated alone with the given parameter values.
+class RayTermCostFunction final : public ceres::CostFunction {
+ public:
+  RayTermCostFunction(RayBatch* batch, int index, LossTerm term)
+      : batch_(batch),
+        index_(index),
+        term_(term),
+        blocks_(batch->TermBlocks(index, term)),
+        model_blocks_(batch->TermParameterBlocks(index, term)) {
+    const Ray& ray = batch->rays()[index];
+    CHECK(ray.HasTerm(term, batch->options().weights))
+        << "term " << LossTermName(term) << " is not active for ray " << index;
+    set_num_residuals(LossTermResiduals(term, ray.NumSamples()));
+    const RayParameters p = batch->ModelParameters(ray);
+    const std::array<int, kNumRayBlocks> sizes = BlockSizes(batch->model(), p);
+    for (RayBlock b : blocks_) mutable_parameter_block_sizes()->push_back(sizes[b]);
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const bool want_jacobians = jacobians != nullptr;
+    bool use_cache =
+        batch_->cache_valid() && (!want_jacobians || batch_->evaluation(index_).has_jacobians);
+    for (size_t i = 0; use_cache && i < blocks_.size(); ++i) {
+      use_cache = parameters[i] == model_blocks_[i];
+    }
+    const RayEvaluation* ev = nullptr;
+    std::vector<RayEvaluation> local;
+    if (use_cache) {
+      ev = &batch_->evaluation(index_);
+    } else {
+      const Ray& ray = batch_->rays()[index_];
+      RayParameters p = batch_->ModelParameters(ray);
+      for (size_t i = 0; i < blocks_.size(); ++i) p.block[blocks_[i]] = parameters[i];
+      batch_->EvaluateRays({&ray}, {p}, want_jacobians, &local);
+      ev = &local[0];
+    }
+    const int row = ev->term_row[static_cast<int>(term_)];
+    CHECK_GE(row, 0);
+    const int rows = num_residuals();
+    std::copy(ev->residuals.begin() + row, ev->residuals.begin() + row + rows, residuals);
+    if (!want_jacobians) return true;
+    for (size_t i = 0; i < blocks_.size(); ++i) {
+      if (jacobians[i] == nullptr) continue;
+      const RowMajorMatrix& jac = ev->jacobians[blocks_[i]];
+      Eigen::Map<RowMajorMatrix>(jacobians[i], rows, jac.cols()) = jac.middleRows(row, rows);
+    }
+    return true;
+  }
+
+ private:
+  RayBatch* batch_;
+  const int index_;
+  const LossTerm term_;
+  const std::vector<RayBlock> blocks_;
+  const std::vector<double*> model_blocks_;
+};
+
+}  // namespace
+
+std::unique_ptr<ceres::CostFunction> RayBatch::MakeCostFunction(int index, LossTerm term) {
+  return std::make_unique<RayTermCostFunction>(this, index, term);
+}
+
+}  // namespace banmo

@@ -1,0 +1,63 @@
+#include "banmo/model/model.h"
+
+#include <cmath>
+
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+
+namespace banmo {
+
+void ModelOptions::Check() const {
+  if (!field.Check()) ThrowInputError("model.field: invalid canonical field options");
+  if (num_bones < 0 || num_bones > 256) {
+    ThrowInputError("model.num_bones: expected 0..256, got ", num_bones);
+  }
+  if (!(init_bone_scale > 0)) ThrowInputError("model.init_bone_scale: expected > 0");
+  if (!(init_beta > 0)) ThrowInputError("model.init_beta: expected > 0");
+}
+
+Model::Model(const ModelOptions& options, const std::vector<int>& frames_per_video,
+             const std::vector<PinholeCamera>& cameras)
+    : options_(options), field_(std::make_unique<CanonicalField>(options.field)) {
+  options_.Check();
+  CHECK_EQ(frames_per_video.size(), cameras.size());
+  sdf_.resize(field_->SdfParameterSize());
+  color_.resize(field_->ColorParameterSize());
+  embedding_.resize(field_->EmbeddingParameterSize());
+  field_->InitializeParameters(options.seed, sdf_.data(), color_.data(), embedding_.data());
+  log_beta_ = std::log(options.init_beta);
+
+  // Bones on a Fibonacci sphere of half the initial SDF radius.
+  const int B = options.num_bones;
+  std::vector<Eigen::Vector3d> centres(B);
+  const double radius = 0.5 * options.field.init_sphere_radius;
+  for (int b = 0; b < B; ++b) {
+    const double y = B == 1 ? 0.0 : 1.0 - 2.0 * (b + 0.5) / B;
+    const double r = std::sqrt(std::max(0.0, 1.0 - y * y));
+    const double phi = b * M_PI * (3.0 - std::sqrt(5.0));
+    centres[b] = radius * Eigen::Vector3d(r * std::cos(phi), y, r * std::sin(phi));
+  }
+  bones_.resize(kBoneSize * B);
+  InitializeBones(centres, options.init_bone_scale, bones_.data());
+
+  videos_.resize(frames_per_video.size());
+  for (size_t v = 0; v < videos_.size(); ++v) {
+    videos_[v].camera = cameras[v];
+    videos_[v].intrinsics = cameras[v].intrinsics;
+    videos_[v].appearance.assign(options.field.appearance_code_dim, 0.0);
+    videos_[v].frames.resize(frames_per_video[v]);
+    for (auto& f : videos_[v].frames) {
+      f.bones_t.resize(kPoseSize * B);
+      for (int b = 0; b < B; ++b) PoseSetIdentity(f.bones_t.data() + kPoseSize * b);
+    }
+  }
+}
+
+Pose Model::RootPose(int v, int t) const {
+  const FrameParameters& f = frame(v, t);
+  Pose out;
+  PoseCompose(f.root_delta.data(), f.root_init.data(), out.data());
+  return out;
+}
+
+}  // namespace banmo
