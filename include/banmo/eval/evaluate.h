@@ -1,0 +1,112 @@
+// Evaluation of predicted meshes against ground truth (BANMo, Sec. 4.1,
+// Tab. 1): alignment, Chamfer distance and F-score, per frame and averaged.
+// See docs/eval.md for the protocols, formulas and conventions.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "banmo/eval/icp.h"
+#include "banmo/eval/metrics.h"
+#include "banmo/geometry/mesh.h"
+
+namespace banmo {
+
+enum class EvalProtocol {
+  // BANMo's official script: all vertices; prediction scaled by the ratio of
+  // median depths (z), rigid ICP from identity; meshes in camera coordinates.
+  kBanmo,
+  // Area-weighted surface samples on both meshes; centroid + RMS-radius
+  // initialisation, then similarity ICP (Umeyama, scale estimated).
+  kSurface,
+};
+
+// "banmo" | "surface"; throws InputError naming `what` otherwise.
+EvalProtocol ParseEvalProtocol(const std::string& name, const std::string& what = "protocol");
+std::string EvalProtocolName(EvalProtocol protocol);
+
+struct EvalOptions {
+  // Which protocol (see EvalProtocol).
+  EvalProtocol protocol = EvalProtocol::kBanmo;
+  // ICP rounds (BANMo's script: 100). 0 = no ICP (only the initial scaling).
+  int icp_iterations = 100;
+  // ICP convergence: relative rmse change below this (pytorch3d's default).
+  double icp_relative_tolerance = 1e-6;
+  // Robust ICP weighting; kNone reproduces BANMo's script.
+  RobustLoss robust = RobustLoss::kNone;
+  // Fraction kept by trimmed ICP, in (0, 1].
+  double trim_fraction = 0.9;
+  // Huber ICP: delta = huber_factor * median residual; > 0.
+  double huber_factor = 2.0;
+  // Surface protocol: samples per mesh (>= 100).
+  int num_samples = 30000;
+  // Surface protocol: ICP query points per direction (prefix of the samples;
+  // 0 = all). The final metrics always use all samples.
+  int icp_max_queries = 10000;
+  // Surface protocol: seed of the sampler (the same stream for both meshes).
+  std::uint64_t seed = 0;
+  // Surface protocol: symmetric correspondences in ICP (guards the scale).
+  bool symmetric_icp = true;
+  // Surface protocol: scale guard of ICP, see IcpOptions::max_scale_change.
+  double max_scale_change = 4.0;
+
+  // Throws InputError naming the offending field.
+  void Check() const;
+};
+
+// One frame. Distances are in normalised units: the ground truth scaled so
+// that its largest half-extent (half its longest bounding-box edge) is 1;
+// "cm" = 100 x normalised units, as in BANMo's tables.
+struct FrameEval {
+  std::string pred_name;    // label of the predicted mesh (file name)
+  std::string gt_name;      // label of the ground-truth mesh
+  int num_pred_points = 0;  // vertices (banmo) or samples (surface)
+  int num_gt_points = 0;
+  double gt_normalization = 1.0;  // factor applied to both meshes (1 / half-extent)
+  double initial_scale = 1.0;     // median-depth ratio (banmo) or RMS-radius ratio (surface)
+  IcpResult icp;                  // in normalised units; icp.source_to_target.scale is
+                                  // relative to the initial scale
+  DistanceMetrics metrics;        // normalised units
+
+  double ChamferCm() const { return 100.0 * metrics.chamfer_sum; }
+  double ChamferMeanCm() const { return 100.0 * metrics.chamfer_mean; }
+};
+
+struct EvalReport {
+  EvalProtocol protocol = EvalProtocol::kBanmo;
+  std::vector<FrameEval> frames;
+  // Means over frames.
+  double chamfer_cm = 0.0;       // sum convention, BANMo's "CD (cm)"
+  double chamfer_mean_cm = 0.0;  // mean convention
+  double pred_to_gt_cm = 0.0;
+  double gt_to_pred_cm = 0.0;
+  std::array<double, 3> fscore_percent{};  // F@1 %, F@2 %, F@5 % in percent
+  // Worst frames: largest Chamfer, smallest F-score per threshold.
+  int worst_chamfer_frame = -1;
+  std::array<int, 3> worst_fscore_frame{{-1, -1, -1}};
+  int icp_converged_frames = 0;  // frames whose ICP met the tolerance
+};
+
+// Evaluates one predicted mesh against one ground-truth mesh. Throws
+// InputError naming pred_name / gt_name for empty meshes, non-finite vertices,
+// out-of-range faces, a non-positive median depth (banmo protocol: the meshes
+// must be in camera coordinates, in front of the camera), a degenerate ground
+// truth (zero extent) or a mesh without area (surface protocol).
+FrameEval EvaluatePair(const TriangleMesh& pred, const TriangleMesh& gt, const EvalOptions& options,
+                       const std::string& pred_name = "prediction",
+                       const std::string& gt_name = "ground truth");
+
+// Evaluates frame i of `pred` against frame i of `gt` and summarises. Names
+// (optional, else "frame i") label frames in errors and outputs. Throws
+// InputError if the frame counts differ or are zero.
+EvalReport EvaluateSequence(const std::vector<TriangleMesh>& pred,
+                            const std::vector<TriangleMesh>& gt, const EvalOptions& options,
+                            const std::vector<std::string>& pred_names = {},
+                            const std::vector<std::string>& gt_names = {});
+
+// Recomputes the means and worst frames of `report` from report->frames.
+void Summarize(EvalReport* report);
+
+}  // namespace banmo

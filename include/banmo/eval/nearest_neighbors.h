@@ -1,0 +1,43 @@
+// Exact nearest neighbours in 3-D: a FLANN kd-tree (KDTreeSingleIndex, searched
+// with eps = 0, i.e. exact) and a brute-force reference. FLANN stays inside
+// src/eval/nearest_neighbors.cc.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+
+namespace banmo {
+
+// A kd-tree over a fixed set of 3-D points, built once in the constructor.
+// Queries are exact (same answers as BruteForceNearest up to ties between
+// equidistant points) and may be issued from several threads.
+class KdTree3 {
+ public:
+  // Copies `points` (3 x N, N >= 1) and builds the tree.
+  explicit KdTree3(const Eigen::Matrix3Xd& points);
+  ~KdTree3();
+  KdTree3(KdTree3&&) noexcept;
+  KdTree3& operator=(KdTree3&&) noexcept;
+  KdTree3(const KdTree3&) = delete;
+  KdTree3& operator=(const KdTree3&) = delete;
+
+  int NumPoints() const;
+  // The indexed points (3 x N), in the order given to the constructor.
+  const Eigen::Matrix3Xd& Points() const;
+
+  // For every query column q: index of its nearest indexed point and the
+  // squared Euclidean distance to it. Parallel over queries (util/parallel.h).
+  void Nearest(const Eigen::Matrix3Xd& queries, Eigen::VectorXi* indices,
+               Eigen::VectorXd* squared_distances) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Reference O(N M) search with the same outputs as KdTree3::Nearest (ties go
+// to the lowest index). Used by the tests and the benchmark.
+void BruteForceNearest(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& queries,
+                       Eigen::VectorXi* indices, Eigen::VectorXd* squared_distances);
+
+}  // namespace banmo

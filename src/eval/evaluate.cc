@@ -1,0 +1,227 @@
+#include "banmo/eval/evaluate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "banmo/eval/nearest_neighbors.h"
+#include "banmo/eval/surface_sampling.h"
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+
+namespace banmo {
+
+EvalProtocol ParseEvalProtocol(const std::string& name, const std::string& what) {
+  if (name == "banmo") return EvalProtocol::kBanmo;
+  if (name == "surface") return EvalProtocol::kSurface;
+  ThrowInputError(what, ": unknown protocol '", name, "' (expected banmo or surface)");
+}
+
+std::string EvalProtocolName(EvalProtocol protocol) {
+  return protocol == EvalProtocol::kBanmo ? "banmo" : "surface";
+}
+
+void EvalOptions::Check() const {
+  if (icp_iterations < 0) ThrowInputError("icp_iterations: must be >= 0, got ", icp_iterations);
+  if (!(icp_relative_tolerance >= 0.0)) {
+    ThrowInputError("icp_relative_tolerance: must be >= 0, got ", icp_relative_tolerance);
+  }
+  if (!(trim_fraction > 0.0 && trim_fraction <= 1.0)) {
+    ThrowInputError("trim_fraction: must be in (0, 1], got ", trim_fraction);
+  }
+  if (!(huber_factor > 0.0)) ThrowInputError("huber_factor: must be > 0, got ", huber_factor);
+  if (num_samples < 100) ThrowInputError("num_samples: must be >= 100, got ", num_samples);
+  if (icp_max_queries < 0) ThrowInputError("icp_max_queries: must be >= 0, got ", icp_max_queries);
+  if (!(max_scale_change >= 1.0)) {
+    ThrowInputError("max_scale_change: must be >= 1, got ", max_scale_change);
+  }
+}
+
+namespace {
+
+void ValidateMesh(const TriangleMesh& mesh, const std::string& name, bool need_faces) {
+  if (mesh.NumVertices() == 0) ThrowInputError(name, ": mesh is empty (expected vertices)");
+  for (int i = 0; i < mesh.NumVertices(); ++i) {
+    if (!mesh.vertices.col(i).allFinite()) {
+      ThrowInputError(name, ": vertex ", i,
+                      " is not finite (NaN or Inf); expected finite coordinates");
+    }
+  }
+  if (mesh.NumFaces() > 0 &&
+      (mesh.faces.minCoeff() < 0 || mesh.faces.maxCoeff() >= mesh.NumVertices())) {
+    ThrowInputError(name, ": a face refers to a vertex index outside [0, ", mesh.NumVertices(),
+                    ")");
+  }
+  if (need_faces && !(MeshArea(mesh) > 0.0)) {
+    ThrowInputError(name, ": mesh has no triangle with positive area (", mesh.NumFaces(),
+                    " faces); the surface protocol samples the surface");
+  }
+}
+
+double MedianDepth(const Eigen::Matrix3Xd& points) {
+  std::vector<double> z(static_cast<std::size_t>(points.cols()));
+  for (Eigen::Index i = 0; i < points.cols(); ++i) z[static_cast<std::size_t>(i)] = points(2, i);
+  // torch.median returns the lower of the two middle values for even counts.
+  const std::size_t mid = (z.size() - 1) / 2;
+  std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(mid), z.end());
+  return z[mid];
+}
+
+Eigen::Vector3d RmsAboutCentroid(const Eigen::Matrix3Xd& points, double* rms) {
+  const Eigen::Vector3d c = points.rowwise().mean();
+  *rms = std::sqrt((points.colwise() - c).colwise().squaredNorm().mean());
+  return c;
+}
+
+}  // namespace
+
+FrameEval EvaluatePair(const TriangleMesh& pred, const TriangleMesh& gt, const EvalOptions& options,
+                       const std::string& pred_name, const std::string& gt_name) {
+  options.Check();
+  const bool surface = options.protocol == EvalProtocol::kSurface;
+  ValidateMesh(pred, pred_name, surface);
+  ValidateMesh(gt, gt_name, surface);
+
+  FrameEval out;
+  out.pred_name = pred_name;
+  out.gt_name = gt_name;
+
+  // Normalisation: the GT's longest bounding-box edge becomes 2 (half-extent 1).
+  const Eigen::Vector3d extent =
+      gt.vertices.rowwise().maxCoeff() - gt.vertices.rowwise().minCoeff();
+  const double longest = extent.maxCoeff();
+  if (!(longest > 0.0)) {
+    ThrowInputError(gt_name, ": ground-truth mesh has zero extent (all vertices coincide)");
+  }
+  out.gt_normalization = 2.0 / longest;
+  const double longest_normalized = longest * out.gt_normalization;  // = 2 up to rounding
+
+  Eigen::Matrix3Xd p;
+  Eigen::Matrix3Xd g;
+  Similarity init;
+  if (!surface) {
+    p = pred.vertices;
+    g = gt.vertices;
+    const double z_pred = MedianDepth(p);
+    const double z_gt = MedianDepth(g);
+    if (!(z_pred > 0.0)) {
+      ThrowInputError(pred_name, ": median depth (z) is ", z_pred,
+                      "; the banmo protocol expects meshes in camera coordinates in front of the "
+                      "camera (use --protocol surface for other coordinates)");
+    }
+    if (!(z_gt > 0.0)) {
+      ThrowInputError(gt_name, ": median depth (z) is ", z_gt,
+                      "; the banmo protocol expects meshes in camera coordinates in front of the "
+                      "camera (use --protocol surface for other coordinates)");
+    }
+    out.initial_scale = z_gt / z_pred;
+    p *= out.initial_scale * out.gt_normalization;
+    g *= out.gt_normalization;
+    // Rigid ICP from identity.
+  } else {
+    p = SampleSurface(pred, options.num_samples, options.seed);
+    g = SampleSurface(gt, options.num_samples, options.seed);
+    double rms_p = 0.0;
+    double rms_g = 0.0;
+    const Eigen::Vector3d c_p = RmsAboutCentroid(p, &rms_p);
+    const Eigen::Vector3d c_g = RmsAboutCentroid(g, &rms_g);
+    if (!(rms_p > 0.0)) ThrowInputError(pred_name, ": predicted surface has zero extent");
+    out.initial_scale = rms_g / rms_p;
+    p *= out.initial_scale * out.gt_normalization;
+    g *= out.gt_normalization;
+    // Start with the centroids on top of each other.
+    init.translation = (c_g - out.initial_scale * c_p) * out.gt_normalization;
+  }
+  out.num_pred_points = static_cast<int>(p.cols());
+  out.num_gt_points = static_cast<int>(g.cols());
+
+  // One kd-tree per side for this frame; used by ICP and the final distances.
+  const KdTree3 pred_tree(p);
+  const KdTree3 gt_tree(g);
+  if (options.icp_iterations > 0) {
+    IcpOptions icp;
+    icp.max_iterations = options.icp_iterations;
+    icp.relative_rmse_tolerance = options.icp_relative_tolerance;
+    icp.estimate_scale = surface;
+    icp.symmetric = surface && options.symmetric_icp;
+    icp.robust = options.robust;
+    icp.trim_fraction = options.trim_fraction;
+    icp.huber_factor = options.huber_factor;
+    icp.max_scale_change = options.max_scale_change;
+    icp.max_queries = surface ? options.icp_max_queries : 0;
+    out.icp = RunIcp(pred_tree, gt_tree, init, icp);
+  } else {
+    out.icp.source_to_target = init;
+  }
+  const Similarity& t = out.icp.source_to_target;
+
+  // Exact distances both ways. gt->pred is searched in the untransformed
+  // prediction's tree: d(q, T(P)) = s * d(T^-1(q), P).
+  Eigen::VectorXi idx;
+  Eigen::VectorXd sq;
+  gt_tree.Nearest(t.Apply(p), &idx, &sq);
+  const Eigen::VectorXd pred_to_gt = sq.cwiseSqrt();
+  pred_tree.Nearest(t.ApplyInverse(g), &idx, &sq);
+  const Eigen::VectorXd gt_to_pred = t.scale * sq.cwiseSqrt();
+  out.metrics = ComputeDistanceMetrics(pred_to_gt, gt_to_pred, longest_normalized);
+  return out;
+}
+
+void Summarize(EvalReport* report) {
+  const int n = static_cast<int>(report->frames.size());
+  report->chamfer_cm = report->chamfer_mean_cm = 0.0;
+  report->pred_to_gt_cm = report->gt_to_pred_cm = 0.0;
+  report->fscore_percent = {0.0, 0.0, 0.0};
+  report->worst_chamfer_frame = -1;
+  report->worst_fscore_frame = {-1, -1, -1};
+  report->icp_converged_frames = 0;
+  if (n == 0) return;
+  for (int i = 0; i < n; ++i) {
+    const FrameEval& f = report->frames[static_cast<std::size_t>(i)];
+    report->chamfer_cm += f.ChamferCm() / n;
+    report->chamfer_mean_cm += f.ChamferMeanCm() / n;
+    report->pred_to_gt_cm += 100.0 * f.metrics.pred_to_gt / n;
+    report->gt_to_pred_cm += 100.0 * f.metrics.gt_to_pred / n;
+    if (f.icp.converged) ++report->icp_converged_frames;
+    if (report->worst_chamfer_frame < 0 ||
+        f.metrics.chamfer_sum >
+            report->frames[static_cast<std::size_t>(report->worst_chamfer_frame)]
+                .metrics.chamfer_sum) {
+      report->worst_chamfer_frame = i;
+    }
+    for (std::size_t k = 0; k < 3; ++k) {
+      report->fscore_percent[k] += 100.0 * f.metrics.fscore[k] / n;
+      int& worst = report->worst_fscore_frame[k];
+      if (worst < 0 ||
+          f.metrics.fscore[k] < report->frames[static_cast<std::size_t>(worst)].metrics.fscore[k]) {
+        worst = i;
+      }
+    }
+  }
+}
+
+EvalReport EvaluateSequence(const std::vector<TriangleMesh>& pred,
+                            const std::vector<TriangleMesh>& gt, const EvalOptions& options,
+                            const std::vector<std::string>& pred_names,
+                            const std::vector<std::string>& gt_names) {
+  options.Check();
+  if (pred.size() != gt.size()) {
+    ThrowInputError("frame counts differ: ", pred.size(), " predicted meshes but ", gt.size(),
+                    " ground-truth meshes (expected one prediction per ground-truth frame)");
+  }
+  if (pred.empty()) ThrowInputError("no frames to evaluate (expected at least one mesh)");
+  CHECK(pred_names.empty() || pred_names.size() == pred.size());
+  CHECK(gt_names.empty() || gt_names.size() == gt.size());
+  EvalReport report;
+  report.protocol = options.protocol;
+  for (std::size_t i = 0; i < pred.size(); ++i) {
+    const std::string frame = "frame " + std::to_string(i);
+    report.frames.push_back(EvaluatePair(
+        pred[i], gt[i], options, pred_names.empty() ? frame + " (prediction)" : pred_names[i],
+        gt_names.empty() ? frame + " (ground truth)" : gt_names[i]));
+  }
+  Summarize(&report);
+  return report;
+}
+
+}  // namespace banmo

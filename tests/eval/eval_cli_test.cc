@@ -1,0 +1,164 @@
+// Runs the built `banmo eval` and checks exit codes, messages and outputs.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+
+#include "banmo/geometry/mesh_io.h"
+#include "test_shapes.h"
+
+namespace banmo {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr
+};
+
+RunResult RunBanmo(const std::string& args) {
+  const std::string command = std::string(BANMO_BINARY) + " eval " + args + " 2>&1";
+  RunResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return result;
+  char buffer[4096];
+  std::size_t n;
+  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) result.output.append(buffer, n);
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Writes a binary PLY by hand (WritePly refuses non-finite vertices).
+void WriteRawPly(const fs::path& path, const Eigen::Matrix3Xd& vertices,
+                 const Eigen::Matrix3Xi& faces) {
+  std::ofstream out(path, std::ios::binary);
+  out << "ply\nformat binary_little_endian 1.0\nelement vertex " << vertices.cols()
+      << "\nproperty double x\nproperty double y\nproperty double z\nelement face " << faces.cols()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  out.write(reinterpret_cast<const char*>(vertices.data()),
+            static_cast<std::streamsize>(sizeof(double) * vertices.size()));
+  for (Eigen::Index f = 0; f < faces.cols(); ++f) {
+    const unsigned char three = 3;
+    out.write(reinterpret_cast<const char*>(&three), 1);
+    out.write(reinterpret_cast<const char*>(faces.col(f).data()), 3 * sizeof(int));
+  }
+}
+
+class EvalCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() /
+            ("banmo_eval_cli_" + std::to_string(::getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "gt");
+    fs::create_directories(root_ / "pred");
+    const Eigen::Vector3d center(0.0, 0.0, 3.0);
+    for (int i = 0; i < 3; ++i) {
+      const TriangleMesh gt = testing::Blob(center + Eigen::Vector3d(0.1 * i, 0, 0), 16, 32);
+      // A perturbed copy: slightly larger, rotated about the viewing axis.
+      const TriangleMesh pred =
+          testing::Transformed(gt, 1.0 + 0.01 * i, testing::Rotation(3.0, Eigen::Vector3d(0, 0, 1)),
+                               Eigen::Vector3d(0.01, 0, 0));
+      WritePly((root_ / "gt" / ("frame_" + std::to_string(i) + ".ply")).string(), gt);
+      WriteObj((root_ / "pred" / ("frame_" + std::to_string(i) + ".obj")).string(), pred);
+    }
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  std::string Path(const std::string& rel) const { return (root_ / rel).string(); }
+
+  fs::path root_;
+};
+
+TEST_F(EvalCli, WritesTableCsvAndJson) {
+  for (const std::string protocol : {"banmo", "surface"}) {
+    const std::string out = Path("out_" + protocol);
+    const RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt") + " --protocol " +
+                                 protocol + " --samples 3000 --out " + out);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("CD(cm)"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("mean"), std::string::npos);
+    const std::string json = ReadText(fs::path(out) / "summary.json");
+    for (const char* key : {"\"chamfer_cm\"", "\"fscore_1\"", "\"fscore_2\"", "\"fscore_5\"",
+                            "\"frames\": 3", "\"worst_frame\"", "\"protocol\""}) {
+      EXPECT_NE(json.find(key), std::string::npos) << key << "\n" << json;
+    }
+    const std::string csv = ReadText(fs::path(out) / "per_frame.csv");
+    EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 4) << csv;  // header + 3 frames
+    EXPECT_EQ(csv.rfind("frame,pred,gt,chamfer_cm", 0), 0u);
+    // No temporary files left behind.
+    for (const auto& entry : fs::directory_iterator(out)) {
+      EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos);
+    }
+  }
+}
+
+TEST_F(EvalCli, SingleFilesWork) {
+  const RunResult r =
+      RunBanmo("--pred " + Path("pred/frame_0.obj") + " --gt " + Path("gt/frame_0.ply"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
+TEST_F(EvalCli, MismatchedFrameCounts) {
+  const RunResult r = RunBanmo("--pred " + Path("pred/frame_0.obj") + " --gt " + Path("gt"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("frame counts differ"), std::string::npos) << r.output;
+}
+
+TEST_F(EvalCli, EmptyMesh) {
+  const fs::path empty = root_ / "gt" / "frame_1.ply";
+  WriteRawPly(empty, Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xi(3, 0));
+  const RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find(empty.string()), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("no vertices"), std::string::npos) << r.output;
+}
+
+TEST_F(EvalCli, NanVertex) {
+  Eigen::Matrix3Xd v(3, 3);
+  v << 0, 1, 0, 0, 0, 1, 3, 3, std::numeric_limits<double>::quiet_NaN();
+  Eigen::Matrix3Xi f(3, 1);
+  f << 0, 1, 2;
+  const fs::path bad = root_ / "pred" / "frame_2.ply";
+  fs::remove(root_ / "pred" / "frame_2.obj");
+  WriteRawPly(bad, v, f);
+  const RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find(bad.string() + ": vertex 2 has a non-finite coordinate"),
+            std::string::npos)
+      << r.output;
+}
+
+TEST_F(EvalCli, UnreadableAndMissingFiles) {
+  const fs::path garbage = root_ / "gt" / "frame_0.ply";
+  std::ofstream(garbage) << "this is not a ply file\n";
+  RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find(garbage.string()), std::string::npos) << r.output;
+  r = RunBanmo("--pred " + Path("nowhere") + " --gt " + Path("gt"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("nowhere: does not exist"), std::string::npos) << r.output;
+  r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt") + " --protocol chamfer");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--protocol: unknown protocol 'chamfer'"), std::string::npos);
+  r = RunBanmo("--pred " + Path("pred"));  // --gt missing: CLI11 usage error
+  EXPECT_NE(r.exit_code, 0);
+}
+
+}  // namespace
+}  // namespace banmo
