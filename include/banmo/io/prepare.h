@@ -1,0 +1,52 @@
+// Dataset preparation from a real video (`banmo prepare`): frames + user
+// masks -> the dataset format of docs/dataset.md, with DIS optical flow and
+// forward-backward occlusion, optional features and root poses.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "banmo/io/dataset.h"
+#include "banmo/io/optical_flow.h"
+
+namespace banmo {
+
+// How mask PNG values are read.
+enum class MaskFormat {
+  kAuto,    // kBanmo if any value is 128, else kBinary; other values are an error
+  kBinary,  // 0/255 or 0/1: object = value >= 128 (or == 1 if every mask is 0/1)
+  kBanmo,   // BANMo's format: 0 = background, 128 = object, 255 = ignore
+};
+
+struct PrepareOptions {
+  std::string video_path;    // a video file read with cv::VideoCapture, or ...
+  std::string frames_dir;    // ... a folder of images (.png .jpg .jpeg .bmp), sorted by name
+  std::string masks_dir;     // one mask image per frame (same stems as the frames; in video
+                             // mode the sorted masks are matched to frames in order)
+  std::string features_dir;  // optional: one .npy (H x W x 16, float16/32) per frame, same rule
+  std::string poses_path;    // optional: root poses, one "qw qx qy qz tx ty tz" line per frame
+  std::string video_name = "video0";          // folder name of the video in the dataset
+  std::vector<int> gaps = {1, 2, 4, 8};       // flow frame gaps (positive, unique)
+  std::optional<Eigen::Vector4d> intrinsics;  // fx, fy, cx, cy; default: max(w, h), centre
+  MaskFormat mask_format = MaskFormat::kAuto;
+  // Without a poses file: identity rotation, object this far along +z (scene units).
+  double default_distance = 3.0;
+  int max_frames = 0;  // use at most this many frames from the start (0 = all)
+  OpticalFlowOptions flow;
+
+  // Throws InputError naming the option on a bad value or missing path.
+  void Check() const;
+};
+
+// Reads everything, computes flow and returns the in-memory dataset (one
+// video). Throws InputError naming the file on any bad input.
+Dataset PrepareDataset(const PrepareOptions& options);
+
+// Converts one mask image (CV_8UC1) to kMaskBackground/Ignore/Object.
+// `binary_01` selects the 0/1 reading of kBinary. Throws InputError naming
+// `name` on values the format does not allow.
+cv::Mat ConvertMask(const cv::Mat& raw, MaskFormat format, bool binary_01, const std::string& name);
+
+}  // namespace banmo

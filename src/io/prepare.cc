@@ -1,0 +1,342 @@
+#include "banmo/io/prepare.h"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <set>
+
+#include "banmo/io/codecs.h"
+#include "banmo/io/npy.h"
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+#include "banmo/util/parallel.h"
+#include "banmo/util/timer.h"
+
+namespace banmo {
+namespace fs = std::filesystem;
+namespace {
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+// Files of `dir` whose extension is in `exts`, sorted by name.
+std::vector<fs::path> ListFiles(const std::string& dir, const std::set<std::string>& exts,
+                                const std::string& what) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) ThrowInputError(dir, ": not a folder (", what, ")");
+  std::vector<fs::path> out;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (e.is_regular_file() && exts.count(Lower(e.path().extension().string()))) {
+      out.push_back(e.path());
+    }
+  }
+  std::sort(out.begin(), out.end());
+  if (out.empty()) ThrowInputError(dir, ": no ", what, " found");
+  return out;
+}
+
+// Pairs per-frame files with frames: by stem when frame stems are known,
+// otherwise in sorted order.
+std::vector<fs::path> MatchToFrames(const std::vector<fs::path>& files,
+                                    const std::vector<std::string>& frame_stems, int num_frames,
+                                    const std::string& dir, const std::string& what) {
+  std::vector<fs::path> out;
+  if (!frame_stems.empty()) {
+    std::map<std::string, fs::path> by_stem;
+    for (const fs::path& p : files) {
+      if (!by_stem.emplace(p.stem().string(), p).second) {
+        ThrowInputError(p.string(), ": two ", what, " files with the stem '", p.stem().string(),
+                        "'");
+      }
+    }
+    for (int t = 0; t < num_frames; ++t) {
+      const auto it = by_stem.find(frame_stems[t]);
+      if (it == by_stem.end()) {
+        ThrowInputError(dir, ": no ", what, " for frame '", frame_stems[t],
+                        "' (expected a file with the same name stem)");
+      }
+      out.push_back(it->second);
+    }
+    return out;
+  }
+  if (static_cast<int>(files.size()) < num_frames) {
+    ThrowInputError(dir, ": ", files.size(), " ", what, " files for ", num_frames,
+                    " video frames (expected one per frame, in sorted order)");
+  }
+  out.assign(files.begin(), files.begin() + num_frames);
+  return out;
+}
+
+}  // namespace
+
+void PrepareOptions::Check() const {
+  if (video_path.empty() == frames_dir.empty()) {
+    ThrowInputError("prepare: give exactly one of a video file or a frames folder");
+  }
+  if (masks_dir.empty()) ThrowInputError("prepare: a masks folder is required");
+  if (gaps.empty()) ThrowInputError("prepare: gaps must not be empty");
+  std::set<int> seen;
+  for (int g : gaps) {
+    if (g <= 0 || g >= 100000 || !seen.insert(g).second) {
+      ThrowInputError("prepare: gaps must be unique positive integers, found ", g);
+    }
+  }
+  if (intrinsics && !(intrinsics->allFinite() && (*intrinsics)[0] > 0 && (*intrinsics)[1] > 0)) {
+    ThrowInputError("prepare: intrinsics must be finite with fx, fy > 0");
+  }
+  if (!(std::isfinite(default_distance) && default_distance > 0)) {
+    ThrowInputError("prepare: default_distance must be > 0, found ", default_distance);
+  }
+  if (max_frames < 0) ThrowInputError("prepare: max_frames must be >= 0");
+  flow.Check();
+}
+
+cv::Mat ConvertMask(const cv::Mat& raw, MaskFormat format, bool binary_01,
+                    const std::string& name) {
+  CHECK_EQ(raw.type(), CV_8UC1);
+  cv::Mat out(raw.size(), CV_8UC1);
+  for (int r = 0; r < raw.rows; ++r) {
+    const unsigned char* in = raw.ptr<unsigned char>(r);
+    unsigned char* o = out.ptr<unsigned char>(r);
+    for (int c = 0; c < raw.cols; ++c) {
+      const unsigned char v = in[c];
+      if (format == MaskFormat::kBanmo) {
+        if (v == 0) {
+          o[c] = kMaskBackground;
+        } else if (v == 128) {
+          o[c] = kMaskObject;
+        } else if (v == 255) {
+          o[c] = kMaskIgnore;
+        } else {
+          ThrowInputError(name, ": mask value ", int(v), " at (x=", c, ", y=", r,
+                          ") is not 0, 128 or 255 (BANMo mask format)");
+        }
+      } else if (binary_01) {
+        if (v > 1) {
+          ThrowInputError(name, ": mask value ", int(v), " at (x=", c, ", y=", r,
+                          ") in a 0/1 mask set");
+        }
+        o[c] = v ? kMaskObject : kMaskBackground;
+      } else {
+        o[c] = v >= 128 ? kMaskObject : kMaskBackground;
+      }
+    }
+  }
+  return out;
+}
+
+Dataset PrepareDataset(const PrepareOptions& options) {
+  options.Check();
+  Timer timer;
+  // 1. Frames (RGB).
+  std::vector<cv::Mat> frames;
+  std::vector<std::string> stems;
+  if (!options.frames_dir.empty()) {
+    const auto files =
+        ListFiles(options.frames_dir, {".png", ".jpg", ".jpeg", ".bmp"}, "frame images");
+    const int n = options.max_frames > 0
+                      ? std::min<int>(options.max_frames, static_cast<int>(files.size()))
+                      : static_cast<int>(files.size());
+    frames.resize(n);
+    for (int t = 0; t < n; ++t) stems.push_back(files[t].stem().string());
+    std::vector<std::exception_ptr> errors(n);
+    ParallelFor(n, [&](int begin, int end) {
+      for (int t = begin; t < end; ++t) {
+        try {
+          const cv::Mat bgr = cv::imread(files[t].string(), cv::IMREAD_COLOR);
+          if (bgr.empty()) ThrowInputError(files[t].string(), ": unreadable image");
+          cv::cvtColor(bgr, frames[t], cv::COLOR_BGR2RGB);
+        } catch (...) {
+          errors[t] = std::current_exception();
+        }
+      }
+    });
+    for (const auto& e : errors) {
+      if (e) std::rethrow_exception(e);
+    }
+  } else {
+    cv::VideoCapture cap(options.video_path);
+    if (!cap.isOpened()) ThrowInputError(options.video_path, ": cannot open the video file");
+    cv::Mat bgr;
+    while (cap.read(bgr)) {
+      if (bgr.empty()) break;
+      if (bgr.type() != CV_8UC3) ThrowInputError(options.video_path, ": expected 8-bit colour");
+      cv::Mat rgb;
+      cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+      frames.push_back(rgb);
+      if (options.max_frames > 0 && static_cast<int>(frames.size()) >= options.max_frames) break;
+    }
+    if (frames.empty()) ThrowInputError(options.video_path, ": no frames could be decoded");
+  }
+  const std::string source = options.frames_dir.empty() ? options.video_path : options.frames_dir;
+  const int n = static_cast<int>(frames.size());
+  const int w = frames[0].cols;
+  const int h = frames[0].rows;
+  for (int t = 0; t < n; ++t) {
+    if (frames[t].cols != w || frames[t].rows != h) {
+      ThrowInputError(source, ": frame ", t, (stems.empty() ? "" : " (" + stems[t] + ")"), " is ",
+                      frames[t].cols, "x", frames[t].rows, ", frame 0 is ", w, "x", h);
+    }
+  }
+  LOG(INFO) << "prepare: " << n << " frames of " << w << "x" << h << " from " << source;
+
+  // 2. Masks.
+  const auto mask_files =
+      MatchToFrames(ListFiles(options.masks_dir, {".png", ".bmp", ".jpg", ".jpeg"}, "mask images"),
+                    stems, n, options.masks_dir, "mask");
+  std::vector<cv::Mat> raw_masks(n);
+  for (int t = 0; t < n; ++t) {
+    raw_masks[t] = cv::imread(mask_files[t].string(), cv::IMREAD_GRAYSCALE);
+    if (raw_masks[t].empty()) ThrowInputError(mask_files[t].string(), ": unreadable mask image");
+    if (raw_masks[t].cols != w || raw_masks[t].rows != h) {
+      ThrowInputError(mask_files[t].string(), ": mask is ", raw_masks[t].cols, "x",
+                      raw_masks[t].rows, ", the frames are ", w, "x", h);
+    }
+  }
+  MaskFormat format = options.mask_format;
+  // Which values occur (for auto detection and the 0/1 reading).
+  std::array<bool, 256> used{};
+  std::array<int, 256> first_file{};
+  for (int t = 0; t < n; ++t) {
+    for (int r = 0; r < h; ++r) {
+      const unsigned char* p = raw_masks[t].ptr<unsigned char>(r);
+      for (int c = 0; c < w; ++c) {
+        if (!used[p[c]]) first_file[p[c]] = t;
+        used[p[c]] = true;
+      }
+    }
+  }
+  const int max_value = [&] {
+    for (int v = 255; v >= 0; --v) {
+      if (used[v]) return v;
+    }
+    return 0;
+  }();
+  if (format == MaskFormat::kAuto) {
+    for (int v = 0; v < 256; ++v) {
+      if (used[v] && v != 0 && v != 1 && v != 128 && v != 255) {
+        ThrowInputError(mask_files[first_file[v]].string(), ": mask value ", v,
+                        " is not 0, 1, 128 or 255, so the mask format cannot be detected "
+                        "(use --mask-format binary to threshold at 128, or banmo)");
+      }
+    }
+    format = used[128] ? MaskFormat::kBanmo : MaskFormat::kBinary;
+    LOG(INFO) << "prepare: mask format detected: "
+              << (format == MaskFormat::kBanmo ? "BANMo (128 = object, 255 = ignore)"
+                                               : (max_value <= 1 ? "binary 0/1" : "binary 0/255"));
+  }
+  const bool binary_01 = format == MaskFormat::kBinary && max_value <= 1;
+
+  // 3. Optional features and poses.
+  std::vector<fs::path> feature_files;
+  if (!options.features_dir.empty()) {
+    feature_files = MatchToFrames(ListFiles(options.features_dir, {".npy"}, "feature .npy files"),
+                                  stems, n, options.features_dir, "feature");
+  }
+  std::vector<Pose> poses;
+  if (!options.poses_path.empty()) poses = ReadPoseFile(options.poses_path, n);
+
+  Dataset dataset;
+  dataset.flow_gaps = options.gaps;
+  std::sort(dataset.flow_gaps.begin(), dataset.flow_gaps.end());
+  Video& video = dataset.videos.emplace_back();
+  video.name = options.video_name;
+  video.camera.width = w;
+  video.camera.height = h;
+  const double focal = std::max(w, h);
+  video.camera.intrinsics =
+      options.intrinsics ? *options.intrinsics : Eigen::Vector4d(focal, focal, w / 2.0, h / 2.0);
+  video.frames.resize(n);
+  std::vector<std::exception_ptr> errors(n);
+  ParallelFor(n, [&](int begin, int end) {
+    for (int t = begin; t < end; ++t) {
+      try {
+        Frame& f = video.frames[t];
+        f.index = t;
+        f.rgb = frames[t];
+        f.mask = ConvertMask(raw_masks[t], format, binary_01, mask_files[t].string());
+        if (poses.empty()) {
+          f.root_pose_init = PoseIdentity();
+          f.root_pose_init[kPoseT + 2] = options.default_distance;
+        } else {
+          f.root_pose_init = poses[t];
+        }
+        if (!feature_files.empty()) {
+          const std::string path = feature_files[t].string();
+          const cv::Mat m = ReadNpy(path);
+          if ((m.depth() != CV_16F && m.depth() != CV_32F) || m.channels() != kFeatureDim ||
+              m.cols != w || m.rows != h) {
+            ThrowInputError(path, ": expected a float16 or float32 array of shape (", h, ", ", w,
+                            ", ", kFeatureDim, ")");
+          }
+          cv::Vec3i bad;
+          if (!AllFinite(m, &bad)) {
+            ThrowInputError(path, ": NaN or Inf at (x=", bad[1], ", y=", bad[0], ")");
+          }
+          cv::Mat half;
+          m.convertTo(half, CV_16F);
+          // Zero outside the mask (cv::Mat::setTo takes at most 4 channels).
+          const std::size_t pixel_bytes = half.elemSize();
+          for (int r = 0; r < h; ++r) {
+            for (int c = 0; c < w; ++c) {
+              if (f.mask.at<unsigned char>(r, c) == kMaskBackground) {
+                std::memset(half.ptr(r) + c * pixel_bytes, 0, pixel_bytes);
+              }
+            }
+          }
+          f.features = half;
+        }
+      } catch (...) {
+        errors[t] = std::current_exception();
+      }
+    }
+  });
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+
+  // 4. Flow: for each pair (t, t + g), forward and backward DIS flow, then
+  // the forward-backward check for both directions.
+  struct Pair {
+    int t;
+    int gap;
+  };
+  std::vector<Pair> pairs;
+  for (int g : dataset.flow_gaps) {
+    for (int t = 0; t + g < n; ++t) pairs.push_back({t, g});
+  }
+  std::vector<FlowField> forward(pairs.size()), backward(pairs.size());
+  ParallelFor(static_cast<int>(pairs.size()), [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      const int t = pairs[i].t;
+      const int g = pairs[i].gap;
+      const cv::Mat fw = ComputeDisFlow(frames[t], frames[t + g], options.flow.preset);
+      const cv::Mat bw = ComputeDisFlow(frames[t + g], frames[t], options.flow.preset);
+      forward[i].gap = g;
+      forward[i].valid = ForwardBackwardValid(fw, bw, options.flow);
+      fw.convertTo(forward[i].flow, CV_16F);
+      backward[i].gap = -g;
+      backward[i].valid = ForwardBackwardValid(bw, fw, options.flow);
+      bw.convertTo(backward[i].flow, CV_16F);
+    }
+  });
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    video.frames[pairs[i].t].flows.push_back(std::move(forward[i]));
+    video.frames[pairs[i].t + pairs[i].gap].flows.push_back(std::move(backward[i]));
+  }
+  LOG(INFO) << "prepare: " << 2 * pairs.size() << " flow fields in " << timer.Seconds() << " s";
+  return dataset;
+}
+
+}  // namespace banmo
