@@ -139,25 +139,42 @@ void RayBatch::SetRays(std::vector<Ray> rays) {
                       ray.HasTerm(LossTerm::kCycle2d, options_.weights);
     need_match = need_match || (uses && ray.match_indices.empty());
   }
-  if (!need_match) return;
-  CHECK_GT(grid_.cols(), 0) << "SetMatchGrid must be called before rays with features";
-  const CanonicalField& field = model_->field();
-  EmbeddingBatch grid_batch;
-  grid_batch.x = grid_;
-  field.ForwardEmbeddingBatch(model_->embedding(), &grid_batch, false);
-  EmbeddingMatcher matcher(options_.matcher);
-  matcher.Build(grid_, grid_batch.psi);
-  ParallelFor(num_rays(), [&](int begin, int end) {
-    MatchResult result;
-    for (int r = begin; r < end; ++r) {
-      Ray& ray = rays_[r];
-      const bool uses = ray.HasTerm(LossTerm::kFeatureMatch, options_.weights) ||
-                        ray.HasTerm(LossTerm::kCycle2d, options_.weights);
-      if (!uses || !ray.match_indices.empty()) continue;
-      matcher.Match(Eigen::VectorXd(ray.feature), options_.match_top_k, &result);
-      ray.match_indices = result.indices;
+  if (need_match) {
+    CHECK_GT(grid_.cols(), 0) << "SetMatchGrid must be called before rays with features";
+    const CanonicalField& field = model_->field();
+    EmbeddingBatch grid_batch;
+    grid_batch.x = grid_;
+    field.ForwardEmbeddingBatch(model_->embedding(), &grid_batch, false);
+    EmbeddingMatcher matcher(options_.matcher);
+    matcher.Build(grid_, grid_batch.psi);
+    ParallelFor(num_rays(), [&](int begin, int end) {
+      MatchResult result;
+      for (int r = begin; r < end; ++r) {
+        Ray& ray = rays_[r];
+        const bool uses = ray.HasTerm(LossTerm::kFeatureMatch, options_.weights) ||
+                          ray.HasTerm(LossTerm::kCycle2d, options_.weights);
+        if (!uses || !ray.match_indices.empty()) continue;
+        matcher.Match(Eigen::VectorXd(ray.feature), options_.match_top_k, &result);
+        ray.match_indices = result.indices;
+      }
+    });
+  }
+  // 3D-cycle weights at the current parameters.
+  std::vector<const Ray*> need_tau;
+  std::vector<RayParameters> tau_params;
+  std::vector<int> tau_index;
+  for (int r = 0; r < num_rays(); ++r) {
+    if (rays_[r].HasTerm(LossTerm::kCycle3d, options_.weights) && rays_[r].cycle_tau.empty()) {
+      need_tau.push_back(&rays_[r]);
+      tau_params.push_back(ModelParameters(rays_[r]));
+      tau_index.push_back(r);
     }
-  });
+  }
+  if (!need_tau.empty()) {
+    std::vector<RayEvaluation> evals;
+    EvaluateRays(need_tau, tau_params, false, &evals);
+    for (size_t i = 0; i < tau_index.size(); ++i) rays_[tau_index[i]].cycle_tau = evals[i].tau;
+  }
 }
 
 RayParameters RayBatch::ModelParameters(const Ray& ray) const {
@@ -505,14 +522,17 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
         }
       }
 
-      // 3D cycle rows (Eq. 19) with tau held constant.
-      std::vector<double> tau(n);
-      if (cycle3d) {
+      // Rendering weights; the 3D cycle (Eq. 19) uses the ray's fixed
+      // cycle_tau when set (the minibatch's constants), else these values.
+      {
         std::vector<double> sdf(n);
         for (int i = 0; i < n; ++i) sdf[i] = fb.sdf(s.field_offset + i);
+        ev.tau.resize(n);
         CompositeWeights(n, sdf.data(), *p.block[kBlockLogBeta], ray.samples.deltas.data(),
-                         tau.data());
+                         ev.tau.data());
       }
+      const std::vector<double>& tau = ray.cycle_tau.empty() ? ev.tau : ray.cycle_tau;
+      CHECK_EQ(static_cast<int>(tau.size()), n);
 
       if (!jacobians) {
         if (cycle3d) {

@@ -134,14 +134,19 @@ class RayReferenceFunctor {
       for (int k = 0; k < LossTermResiduals(term_, n); ++k) residuals[k] = all[row + k];
       return true;
     }
-    // 3D cycle: tau held constant (its value, no derivative).
-    std::vector<T> tau(n);
-    CompositeWeights(n, &u[L.sdf], u[L.log_beta], ray_.samples.deltas.data(), tau.data());
+    // 3D cycle: tau held constant (the minibatch's values when fixed, else
+    // the current values without their derivative).
+    std::vector<double> tau = ray_.cycle_tau;
+    if (tau.empty()) {
+      std::vector<T> tau_t(n);
+      CompositeWeights(n, &u[L.sdf], u[L.log_beta], ray_.samples.deltas.data(), tau_t.data());
+      for (const T& v : tau_t) tau.push_back(ValueOf(v));
+    }
     for (int i = 0; i < n; ++i) {
       T q[3];
       ForwardWarp(B, bones, block[kBlockBonesT], &x_star[3 * i], q);
-      Cycle3dResidual(Cycle3dLoss(ValueOf(tau[i]), weights.cycle_3d), root, model_params_.root_init,
-                      intr, ray_.uv.data(), ray_.samples.depths[i], q, residuals + 3 * i);
+      Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), root, model_params_.root_init, intr,
+                      ray_.uv.data(), ray_.samples.depths[i], q, residuals + 3 * i);
     }
     return true;
   }

@@ -51,6 +51,11 @@ struct Ray {
   // chosen once per minibatch (the top-K most similar) and then held fixed.
   std::vector<int> match_indices;
   RaySamples samples;  // stratified depths and interval lengths
+  // tau_i of the 3D cycle (Eq. 19, "tau as constant weight"): the rendering
+  // weights at the parameters of the minibatch's start, held fixed during
+  // the minibatch so the residual is a function of the parameters and its
+  // Jacobian exact. Filled by RayBatch::SetRays when empty.
+  std::vector<double> cycle_tau;
 
   int NumSamples() const { return static_cast<int>(samples.depths.size()); }
   // Whether `term` contributes residuals for this ray under `weights`.

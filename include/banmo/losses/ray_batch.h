@@ -64,7 +64,8 @@ using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eig
 // then the 3N rows of the 3D cycle.
 struct RayEvaluation {
   std::vector<double> residuals;
-  std::array<int, kNumLossTerms> term_row{};            // first row of each term, -1 if inactive
+  std::vector<double> tau;                    // rendering weights tau_i of the samples (Eq. 4)
+  std::array<int, kNumLossTerms> term_row{};  // first row of each term, -1 if inactive
   std::array<RowMajorMatrix, kNumRayBlocks> jacobians;  // rows x block size
   bool has_jacobians = false;
 };
@@ -91,8 +92,9 @@ class RayBatch : public ceres::EvaluationCallback {
   const Eigen::Matrix3Xd& match_grid() const { return grid_; }
 
   // Starts a new minibatch. Chooses each feature ray's top-K grid points with
-  // the current embedding (held fixed for this minibatch) unless the ray
-  // already lists them.
+  // the current embedding, and each ray's 3D-cycle weights tau_i at the
+  // current parameters (both held fixed for this minibatch), unless the ray
+  // already has them.
   void SetRays(std::vector<Ray> rays);
   const std::vector<Ray>& rays() const { return rays_; }
   int num_rays() const { return static_cast<int>(rays_.size()); }

@@ -1,0 +1,39 @@
+// A small, fixed-seed synthetic ray batch for the residual-level regression
+// tests and the Jacobian-assembly benchmark: a model with random (but
+// deterministic) poses, bones and MLP weights, and rays through the object
+// that exercise every loss term.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "banmo/losses/ray_batch.h"
+#include "banmo/model/model.h"
+
+namespace banmo {
+
+struct TestSceneOptions {
+  int mlp_width = 8;       // hidden width of all MLPs
+  int sdf_layers = 2;      // hidden layers of the SDF MLP
+  int num_bands = 2;       // positional-encoding bands
+  int appearance_dim = 2;  // appearance code size
+  int num_bones = 3;       // B
+  int num_rays = 4;
+  int num_samples = 8;        // N per ray
+  int grid_points = 64;       // soft-argmax grid size M
+  int match_top_k = 8;        // K
+  double perturbation = 0.2;  // size of the random pose/bone perturbations
+  uint32_t seed = 7;
+  RayLossWeights weights;
+};
+
+struct TestScene {
+  std::unique_ptr<Model> model;
+  std::unique_ptr<RayBatch> batch;
+};
+
+// Two frames of one 64 x 64 video, object about 3 units from the camera;
+// every ray is an object pixel with flow to the other frame and a feature.
+TestScene MakeTestScene(const TestSceneOptions& options);
+
+}  // namespace banmo
