@@ -2,12 +2,14 @@
 // truth, in BANMo's protocol or the surface protocol (docs/eval.md).
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
 #include "banmo/eval/evaluate.h"
 #include "banmo/eval/mesh_sequence.h"
 #include "banmo/eval/report.h"
+#include "banmo/io/dataset.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
@@ -15,6 +17,31 @@
 
 namespace banmo {
 namespace {
+
+// A mesh file, a folder of meshes, or a banmo dataset folder (manifest.yaml,
+// docs/dataset.md): then the ground-truth meshes of every video, video by
+// video, frame by frame.
+std::vector<std::string> ResolveMeshPaths(const std::string& path, const std::string& flag) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec) &&
+      std::filesystem::is_regular_file(std::filesystem::path(path) / "manifest.yaml", ec)) {
+    LoadOptions load;
+    load.load_features = false;
+    load.load_flow = false;
+    const Dataset dataset = LoadDataset(path, load);
+    std::vector<std::string> files;
+    for (const Video& video : dataset.videos) {
+      if (!video.present.gt_mesh) {
+        ThrowInputError(flag, " ", path, ": video '", video.name,
+                        "' of the dataset has no ground-truth meshes (gt_mesh/)");
+      }
+      for (const Frame& frame : video.frames) files.push_back(frame.gt_mesh_path);
+    }
+    if (files.empty()) ThrowInputError(flag, " ", path, ": dataset has no frames");
+    return files;
+  }
+  return ListMeshFiles(path);
+}
 
 int RunEval(int argc, char** argv) {
   CLI::App app{
@@ -32,7 +59,10 @@ int RunEval(int argc, char** argv) {
                  "Predicted meshes: a .ply/.obj file, or a folder with one mesh per frame "
                  "(sorted by file name)")
       ->required();
-  app.add_option("--gt", gt_path, "Ground-truth meshes, same forms as --pred")->required();
+  app.add_option("--gt", gt_path,
+                 "Ground-truth meshes, same forms as --pred, or a banmo dataset folder "
+                 "(manifest.yaml; its gt_mesh/ of every video in order)")
+      ->required();
   app.add_option("--protocol", protocol,
                  "banmo (vertices, median-depth scale, rigid ICP: BANMo's script) or surface "
                  "(surface samples, similarity ICP)")
@@ -72,8 +102,8 @@ int RunEval(int argc, char** argv) {
   if (threads < 0) ThrowInputError("--threads: must be >= 0, got ", threads);
   if (threads > 0) SetNumThreads(threads);
 
-  const std::vector<std::string> pred_files = ListMeshFiles(pred_path);
-  const std::vector<std::string> gt_files = ListMeshFiles(gt_path);
+  const std::vector<std::string> pred_files = ResolveMeshPaths(pred_path, "--pred");
+  const std::vector<std::string> gt_files = ResolveMeshPaths(gt_path, "--gt");
   if (pred_files.size() != gt_files.size()) {
     ThrowInputError("frame counts differ: --pred ", pred_path, " has ", pred_files.size(),
                     " meshes but --gt ", gt_path, " has ", gt_files.size(),

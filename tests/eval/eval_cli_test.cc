@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "../io/test_dataset_util.h"
 #include "banmo/geometry/mesh_io.h"
 #include "test_shapes.h"
 
@@ -158,6 +159,31 @@ TEST_F(EvalCli, UnreadableAndMissingFiles) {
   EXPECT_NE(r.output.find("--protocol: unknown protocol 'chamfer'"), std::string::npos);
   r = RunBanmo("--pred " + Path("pred"));  // --gt missing: CLI11 usage error
   EXPECT_NE(r.exit_code, 0);
+}
+
+// --gt may be a banmo dataset folder: its gt_mesh/ files, video by video.
+TEST_F(EvalCli, DatasetAsGroundTruth) {
+  Dataset dataset = testing::MakeSmallDataset(24, 20, /*frames=*/2);
+  std::vector<std::vector<TriangleMesh>> meshes(dataset.videos.size());
+  fs::create_directories(root_ / "pred4");
+  int k = 0;
+  for (std::size_t v = 0; v < dataset.videos.size(); ++v) {
+    for (std::size_t t = 0; t < dataset.videos[v].frames.size(); ++t, ++k) {
+      meshes[v].push_back(testing::Blob(Eigen::Vector3d(0.05 * k, 0, 3), 16, 32));
+      WritePly((root_ / "pred4" / ("p" + std::to_string(k) + ".ply")).string(), meshes[v].back());
+    }
+  }
+  const std::string dir = Path("dataset");
+  WriteDataset(dataset, dir, &meshes);
+  RunResult r = RunBanmo("--pred " + Path("pred4") + " --gt " + dir + " --out " + Path("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("4 frame(s)"), std::string::npos) << r.output;
+  const std::string json = ReadText(root_ / "out" / "summary.json");
+  EXPECT_NE(json.find("\"chamfer_cm\": 0,"), std::string::npos) << json;  // identical meshes
+  // Frame count mismatch against the dataset.
+  r = RunBanmo("--pred " + Path("pred") + " --gt " + dir);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("frame counts differ"), std::string::npos) << r.output;
 }
 
 }  // namespace
