@@ -131,7 +131,7 @@ void EmbeddingMatcher::FinishMatch(const Eigen::VectorXd& feature, std::vector<i
 
 void SoftArgmaxBackward(const double* feature, const double* psi, const double* points, int K,
                         double temperature, const double* d_x_hat, Eigen::MatrixXd* d_psi,
-                        Eigen::VectorXd* d_feature) {
+                        Eigen::VectorXd* d_feature, double* d_temperature) {
   CHECK(d_psi != nullptr);
   CHECK_GT(K, 0);
   constexpr int kD = kEmbeddingFeatureDim;
@@ -155,8 +155,12 @@ void SoftArgmaxBackward(const double* feature, const double* psi, const double* 
   const double u_mean = w.dot(u);
   d_psi->resize(kD, K);
   if (d_feature != nullptr) d_feature->setZero(kD);
+  if (d_temperature != nullptr) *d_temperature = 0.0;
   for (int k = 0; k < K; ++k) {
-    const double ds = temperature * w[k] * (u[k] - u_mean);
+    // dL/dlogit_k with logit_k = tau s_k.
+    const double dlogit = w[k] * (u[k] - u_mean);
+    if (d_temperature != nullptr) *d_temperature += dlogit * s[k];
+    const double ds = temperature * dlogit;
     // ds_k/dpsi_k = f / (nf npsi) - s_k psi_k / npsi^2.
     d_psi->col(k) = ds * (f / (nf * npsi[k]) - s[k] * P.col(k) / (npsi[k] * npsi[k]));
     // ds_k/df = psi_k / (nf npsi) - s_k f / nf^2.
