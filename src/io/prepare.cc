@@ -266,6 +266,11 @@ Dataset PrepareDataset(const PrepareOptions& options) {
         f.index = t;
         f.rgb = frames[t];
         f.mask = ConvertMask(raw_masks[t], format, binary_01, mask_files[t].string());
+        if (cv::countNonZero(f.mask == kMaskObject) == 0) {
+          LOG(WARNING) << mask_files[t].string() << ": empty mask (no object pixel); frame " << t
+                       << " will be skipped";
+          f.skip = true;
+        }
         if (poses.empty()) {
           f.root_pose_init = PoseIdentity();
           f.root_pose_init[kPoseT + 2] = options.default_distance;

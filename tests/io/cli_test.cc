@@ -1,0 +1,140 @@
+// The `banmo check` and `banmo prepare` commands, run as the built binary:
+// exit codes and messages.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+
+#include "banmo/io/dataset.h"
+#include "test_dataset_util.h"
+
+namespace banmo {
+namespace {
+
+using testing::MakeGtMeshes;
+using testing::MakeSmallDataset;
+using testing::ReadText;
+using testing::TempDir;
+using testing::WriteText;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+RunResult RunBanmo(const TempDir& tmp, const std::string& args) {
+  const std::string out = tmp.path() + "/stdout.txt";
+  const std::string err = tmp.path() + "/stderr.txt";
+  const std::string cmd = std::string(BANMO_BINARY) + " " + args + " > " + out + " 2> " + err;
+  const int status = std::system(cmd.c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = ReadText(out);
+  r.err = ReadText(err);
+  return r;
+}
+
+TEST(CheckCommand, ValidDatasetPrintsSummary) {
+  TempDir tmp;
+  Dataset d = MakeSmallDataset();
+  d.videos[1].frames[3].mask.setTo(0);
+  const auto meshes = MakeGtMeshes(d);
+  WriteDataset(d, tmp.path() + "/ds", &meshes);
+  const RunResult r = RunBanmo(tmp, "check " + tmp.path() + "/ds");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("videos    2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("frames    10 (1 skipped"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("flow gaps 1, 2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("video video1: 5 frames, 24x20"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("present: rgb mask root_poses_init flow features depth gt_mesh "
+                       "root_poses_gt"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("skipped frames: 3"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("on disk"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("empty mask"), std::string::npos) << r.err;  // the warning
+  EXPECT_EQ(RunBanmo(tmp, "check --quick " + tmp.path() + "/ds").exit_code, 0);
+}
+
+TEST(CheckCommand, BadDatasetExitsWithTwoAndNamesTheFile) {
+  TempDir tmp;
+  WriteDataset(MakeSmallDataset(), tmp.path() + "/ds");
+  const std::string path = tmp.path() + "/ds/video0/features/00002.npy";
+  const std::string bytes = ReadText(path);
+  WriteText(path, bytes.substr(0, bytes.size() - 100));
+  const RunResult r = RunBanmo(tmp, "check " + tmp.path() + "/ds");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("error: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("video0/features/00002.npy"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("truncated"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("valid"), std::string::npos) << r.out;
+}
+
+TEST(CheckCommand, MissingFolderAndArguments) {
+  TempDir tmp;
+  const RunResult r = RunBanmo(tmp, "check " + tmp.path() + "/nothing");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("nothing: not a folder"), std::string::npos) << r.err;
+  EXPECT_NE(RunBanmo(tmp, "check").exit_code, 0);
+  EXPECT_EQ(RunBanmo(tmp, "check --help").exit_code, 0);
+}
+
+TEST(PrepareCommand, WritesADatasetThatChecks) {
+  TempDir tmp;
+  std::filesystem::create_directories(tmp.path() + "/frames");
+  std::filesystem::create_directories(tmp.path() + "/masks");
+  cv::RNG rng(2);
+  for (int t = 0; t < 6; ++t) {
+    cv::Mat frame(40, 48, CV_8UC3);
+    rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+    cv::imwrite(tmp.path() + "/frames/f" + std::to_string(t) + ".jpg", frame);
+    cv::Mat mask(40, 48, CV_8UC1, cv::Scalar(0));
+    if (t != 4) mask(cv::Rect(10, 10, 20, 15)).setTo(1);  // 0/1 masks, frame 4 empty
+    cv::imwrite(tmp.path() + "/masks/f" + std::to_string(t) + ".png", mask);
+  }
+  const std::string base = "prepare --frames " + tmp.path() + "/frames --masks " + tmp.path() +
+                           "/masks --out " + tmp.path() + "/ds";
+  const RunResult r = RunBanmo(tmp, base + " --gaps 1,2,4,8 --intrinsics 50,51,24,20");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("6 frames of 48x40, 1 skipped"), std::string::npos) << r.out;
+  const RunResult c = RunBanmo(tmp, "check " + tmp.path() + "/ds");
+  EXPECT_EQ(c.exit_code, 0) << c.err;
+  EXPECT_NE(c.out.find("intrinsics fx 50 fy 51 cx 24 cy 20"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("present: rgb mask root_poses_init flow\n"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("skipped frames: 4"), std::string::npos) << c.out;
+  // The output exists now: refused without --overwrite, nothing changed.
+  const RunResult again = RunBanmo(tmp, base + " --gaps 1,2,4,8");
+  EXPECT_EQ(again.exit_code, 2);
+  EXPECT_NE(again.err.find("not empty"), std::string::npos) << again.err;
+  EXPECT_EQ(RunBanmo(tmp, base + " --overwrite --gaps 1").exit_code, 0);
+  EXPECT_NE(ReadText(tmp.path() + "/ds/manifest.yaml").find("flow_gaps: [1]"), std::string::npos);
+}
+
+TEST(PrepareCommand, BadArguments) {
+  TempDir tmp;
+  std::filesystem::create_directories(tmp.path() + "/frames");
+  const std::string base = "prepare --frames " + tmp.path() + "/frames --masks " + tmp.path() +
+                           "/frames --out " + tmp.path() + "/ds";
+  RunResult r = RunBanmo(tmp, base + " --gaps 1,0");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("gaps"), std::string::npos) << r.err;
+  r = RunBanmo(tmp, base + " --intrinsics 1,2,3");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--intrinsics"), std::string::npos) << r.err;
+  r = RunBanmo(tmp, base + " --mask-format fancy");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--mask-format"), std::string::npos) << r.err;
+  r = RunBanmo(tmp, base);  // empty frames folder
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("no frame images"), std::string::npos) << r.err;
+  r = RunBanmo(tmp, "prepare --masks x --out y");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--video FILE or --frames DIR"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(tmp.path() + "/ds"));
+}
+
+}  // namespace
+}  // namespace banmo

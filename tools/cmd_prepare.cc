@@ -1,0 +1,137 @@
+// banmo prepare: a real video (or folder of frames) + masks -> the dataset
+// format of docs/dataset.md, with DIS optical flow.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "banmo/io/dataset.h"
+#include "banmo/io/prepare.h"
+#include "banmo/util/error.h"
+#include "banmo/util/timer.h"
+#include "command.h"
+
+namespace banmo {
+namespace {
+
+std::vector<double> ParseNumbers(const std::string& text, const std::string& option) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0') {
+      ThrowInputError(option, ": '", item, "' is not a number (expected a comma-separated list)");
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
+int RunPrepare(int argc, char** argv) {
+  CLI::App app{
+      "Prepare a dataset (docs/dataset.md) from a real video: frames from a video file or a "
+      "folder of images, one mask per frame, optical flow computed with OpenCV's DIS flow "
+      "(forward and backward for every gap) and occlusion from forward-backward consistency.\n"
+      "Without --poses, every root pose is the identity rotation with the object at "
+      "--distance along the camera's +z axis. Without --intrinsics, fx = fy = max(width, "
+      "height) and the principal point is the image centre. Without --features, the dataset "
+      "has no feature files.",
+      "banmo prepare"};
+  PrepareOptions options;
+  std::string out_dir;
+  std::string gaps = "1,2,4,8";
+  std::string intrinsics;
+  std::string mask_format = "auto";
+  std::string preset = "medium";
+  bool overwrite = false;
+  auto* video = app.add_option("--video", options.video_path, "Input video file (OpenCV)");
+  auto* frames =
+      app.add_option("--frames", options.frames_dir, "Folder of frame images (sorted by name)");
+  video->excludes(frames);
+  frames->excludes(video);
+  app.add_option("--masks", options.masks_dir,
+                 "Folder of mask images: same name stems as the frames (with --video: one per "
+                 "frame in sorted order)")
+      ->required();
+  app.add_option("--out", out_dir, "Output dataset folder (must not exist or be empty)")
+      ->required();
+  app.add_option("--gaps", gaps, "Flow frame gaps, comma separated")->capture_default_str();
+  app.add_option("--poses", options.poses_path,
+                 "Root poses: one 'qw qx qy qz tx ty tz' line per frame (camera_from_root)");
+  app.add_option("--intrinsics", intrinsics, "fx,fy,cx,cy in pixels");
+  app.add_option("--features", options.features_dir,
+                 "Folder of per-frame feature .npy files (H x W x 16, float16/32)");
+  app.add_option("--mask-format", mask_format,
+                 "auto (BANMo if any value is 128, else binary), binary (0/255 or 0/1; values "
+                 ">= 128 are the object) or banmo (128 = object, 255 = ignore)")
+      ->capture_default_str();
+  app.add_option("--name", options.video_name, "Video folder name in the dataset")
+      ->capture_default_str();
+  app.add_option("--distance", options.default_distance,
+                 "Object distance of the default root poses (scene units)")
+      ->capture_default_str();
+  app.add_option("--max-frames", options.max_frames, "Use at most this many frames (0 = all)")
+      ->capture_default_str();
+  app.add_option("--flow-preset", preset,
+                 "DIS preset: medium (OpenCV PRESET_MEDIUM) or fine (medium refined at full "
+                 "resolution, slower)")
+      ->capture_default_str();
+  app.add_option("--fb-alpha", options.flow.fb_alpha,
+                 "Forward-backward check: relative tolerance alpha in |f+b|^2 < alpha "
+                 "(|f|^2+|b|^2) + beta")
+      ->capture_default_str();
+  app.add_option("--fb-beta", options.flow.fb_beta,
+                 "Forward-backward check: absolute tolerance beta (px^2)")
+      ->capture_default_str();
+  app.add_flag("--overwrite", overwrite, "Replace a non-empty output folder");
+  CLI11_PARSE(app, argc, argv);
+
+  if (options.video_path.empty() && options.frames_dir.empty()) {
+    ThrowInputError("banmo prepare: give --video FILE or --frames DIR");
+  }
+  options.gaps.clear();
+  for (double g : ParseNumbers(gaps, "--gaps")) {
+    if (g != static_cast<int>(g)) ThrowInputError("--gaps: ", g, " is not an integer");
+    options.gaps.push_back(static_cast<int>(g));
+  }
+  if (!intrinsics.empty()) {
+    const std::vector<double> k = ParseNumbers(intrinsics, "--intrinsics");
+    if (k.size() != 4) ThrowInputError("--intrinsics: expected fx,fy,cx,cy (4 numbers)");
+    options.intrinsics = Eigen::Vector4d(k[0], k[1], k[2], k[3]);
+  }
+  if (mask_format == "auto") {
+    options.mask_format = MaskFormat::kAuto;
+  } else if (mask_format == "binary") {
+    options.mask_format = MaskFormat::kBinary;
+  } else if (mask_format == "banmo") {
+    options.mask_format = MaskFormat::kBanmo;
+  } else {
+    ThrowInputError("--mask-format: '", mask_format, "', expected auto, binary or banmo");
+  }
+  if (preset == "medium") {
+    options.flow.preset = DisPreset::kMedium;
+  } else if (preset == "fine") {
+    options.flow.preset = DisPreset::kFine;
+  } else {
+    ThrowInputError("--flow-preset: '", preset, "', expected medium or fine");
+  }
+  options.Check();
+
+  Timer timer;
+  const Dataset dataset = PrepareDataset(options);
+  WriteDataset(dataset, out_dir, nullptr, overwrite);
+  const Video& v = dataset.videos[0];
+  std::printf("wrote %s: video '%s', %zu frames of %dx%d, %d skipped (empty mask), in %.1f s\n",
+              out_dir.c_str(), v.name.c_str(), v.frames.size(), v.camera.width, v.camera.height,
+              dataset.NumSkippedFrames(), timer.Seconds());
+  return 0;
+}
+
+}  // namespace
+}  // namespace banmo
+
+BANMO_REGISTER_COMMAND(prepare, "Make a dataset from a real video and masks (DIS flow)",
+                       banmo::RunPrepare);
