@@ -1,0 +1,397 @@
+#include "banmo/synth/scene.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "banmo/synth/features.h"
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+#include "banmo/util/parallel.h"
+
+namespace banmo::synth {
+
+void SynthOptions::Check() const {
+  auto fail = [](const char* field, const std::string& expected) {
+    ThrowInputError("synth option ", field, ": expected ", expected);
+  };
+  if (num_videos < 1) fail("num_videos", ">= 1");
+  if (frames_per_video < 2) fail("frames_per_video", ">= 2");
+  if (image_size < 16 || image_size > 8192) fail("image_size", "in [16, 8192]");
+  if (!(fps > 0) || !std::isfinite(fps)) fail("fps", "> 0");
+  std::set<int> gaps;
+  for (int g : flow_gaps) {
+    if (g < 1) fail("flow_gaps", "positive gaps");
+    if (!gaps.insert(g).second) fail("flow_gaps", "distinct gaps");
+  }
+  if (!(pose_noise_deg >= 0 && pose_noise_deg <= 180)) fail("pose_noise_deg", "in [0, 180]");
+  if (!(camera_distance > 1.5) || !std::isfinite(camera_distance)) {
+    fail("camera_distance", "> 1.5 (the object has half-extent 1)");
+  }
+  if (!(focal_factor > 0) || !std::isfinite(focal_factor)) fail("focal_factor", "> 0");
+  if (!(azimuth_overlap >= 0 && azimuth_overlap < 1)) fail("azimuth_overlap", "in [0, 1)");
+  if (!(elevation_min_deg >= -80 && elevation_max_deg <= 80 &&
+        elevation_min_deg <= elevation_max_deg)) {
+    fail("elevation_min_deg/elevation_max_deg", "-80 <= min <= max <= 80");
+  }
+  if (!(std::abs(elevation_wobble_deg) <= 10)) fail("elevation_wobble_deg", "|.| <= 10");
+  if (!std::isfinite(root_yaw_wobble_deg)) fail("root_yaw_wobble_deg", "a finite number");
+  if (!(root_drift >= 0 && root_drift <= 1)) fail("root_drift", "in [0, 1]");
+  if (!(speed_jitter >= 0 && speed_jitter < 1)) fail("speed_jitter", "in [0, 1)");
+  if (!(feature_noise >= 0 && feature_noise < 10)) fail("feature_noise", "in [0, 10)");
+  if (!(occlusion_tolerance >= 0 && occlusion_tolerance < 0.5)) {
+    fail("occlusion_tolerance", "in [0, 0.5)");
+  }
+  if (!(ambient >= 0 && ambient <= 1)) fail("ambient", "in [0, 1]");
+  if (!(light_in_camera.norm() > 0) || !light_in_camera.allFinite()) {
+    fail("light_in_camera", "a non-zero direction");
+  }
+  if (background.minCoeff() < 0 || background.maxCoeff() > 255) fail("background", "in [0, 255]");
+}
+
+RigNormalization ComputeNormalization(const Rig& rig) {
+  const Eigen::Vector3d lo = rig.rest_vertices.rowwise().minCoeff();
+  const Eigen::Vector3d hi = rig.rest_vertices.rowwise().maxCoeff();
+  RigNormalization n;
+  n.center = 0.5 * (lo + hi);
+  const double half = 0.5 * (hi - lo).maxCoeff();
+  CHECK_GT(half, 0) << "degenerate rest mesh";
+  n.scale = 1.0 / half;
+  return n;
+}
+
+Eigen::Matrix3Xd PosedVerticesInRoot(const Rig& rig, const ScenePlan& plan, double time) {
+  Eigen::Matrix3Xd x = PoseRig(rig, plan.animation, time);
+  x.colwise() -= plan.normalization.center;
+  return plan.normalization.scale * x;
+}
+
+namespace {
+
+constexpr double kDegToRad = M_PI / 180;
+
+// OpenCV-axes look-at: z towards the target, y down (world y is up).
+Eigen::Isometry3d CameraFromWorldLookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d z = (target - eye).normalized();
+  Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitY());
+  if (x.norm() < 1e-9) x = Eigen::Vector3d::UnitX();  // looking straight up/down
+  x.normalize();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d world_from_camera_rot;
+  world_from_camera_rot << x, y, z;
+  Eigen::Isometry3d world_from_camera = Eigen::Isometry3d::Identity();
+  world_from_camera.linear() = world_from_camera_rot;
+  world_from_camera.translation() = eye;
+  return world_from_camera.inverse();
+}
+
+Eigen::Vector3d RandomUnitVector(std::mt19937_64& rng) {
+  Eigen::Vector3d v;
+  do {
+    v = Eigen::Vector3d(NormalDraw(rng), NormalDraw(rng), NormalDraw(rng));
+  } while (v.norm() < 1e-6);
+  return v.normalized();
+}
+
+}  // namespace
+
+ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
+  options.Check();
+  const std::string problem = rig.Validate();
+  if (!problem.empty()) ThrowInputError("rig '", rig.name, "': ", problem);
+  ScenePlan plan;
+  if (options.animation.empty()) {
+    if (rig.animations.empty()) ThrowInputError("rig '", rig.name, "' has no animation");
+    plan.animation = &rig.animations[0];
+  } else {
+    const int a = rig.FindAnimation(options.animation);
+    if (a < 0) {
+      std::ostringstream names;
+      for (const auto& anim : rig.animations)
+        names << (names.tellp() > 0 ? ", " : "") << "'" << anim.name << "'";
+      ThrowInputError("rig '", rig.name, "' has no animation '", options.animation,
+                      "' (it has: ", names.str().empty() ? "none" : names.str(), ")");
+    }
+    plan.animation = &rig.animations[a];
+  }
+  plan.normalization = ComputeNormalization(rig);
+  const int s = options.image_size;
+  plan.camera.width = plan.camera.height = s;
+  plan.camera.intrinsics =
+      Eigen::Vector4d(options.focal_factor * s, options.focal_factor * s, 0.5 * s, 0.5 * s);
+
+  const int nvid = options.num_videos, nfr = options.frames_per_video;
+  // Elevations evenly spread over the range, shuffled (seeded).
+  std::mt19937_64 scene_rng(MixSeed(options.seed, 0));
+  std::vector<double> elevation(nvid);
+  for (int v = 0; v < nvid; ++v) {
+    const double a = nvid == 1 ? 0.5 : static_cast<double>(v) / (nvid - 1);
+    elevation[v] =
+        options.elevation_min_deg + a * (options.elevation_max_deg - options.elevation_min_deg);
+  }
+  for (int v = nvid - 1; v > 0; --v) {
+    const int j = std::min(v, static_cast<int>(UniformDraw(scene_rng) * (v + 1)));
+    std::swap(elevation[v], elevation[j]);
+  }
+  // Azimuth: video v starts at v * 360 / V (+ jitter) and sweeps so that
+  // consecutive videos share `azimuth_overlap` of their arc.
+  const double spacing = 360.0 / nvid;
+  const double sweep = nvid == 1 ? 180.0 : std::min(360.0, spacing / (1 - options.azimuth_overlap));
+  const double duration = plan.animation->Duration();
+
+  plan.frames.resize(nvid);
+  for (int v = 0; v < nvid; ++v) {
+    std::mt19937_64 rng(MixSeed(options.seed, 1, v));
+    const double az0 = v * spacing + (UniformDraw(rng) - 0.5) * 0.2 * spacing;
+    const double dist = options.camera_distance * (1 + 0.1 * (UniformDraw(rng) - 0.5));
+    const double speed = 1 + options.speed_jitter * (2 * UniformDraw(rng) - 1);
+    const double offset = UniformDraw(rng) * std::max(duration, 1e-9);
+    const double yaw0 = 360 * UniformDraw(rng);
+    const double phase = 2 * M_PI * UniformDraw(rng);
+    std::mt19937_64 noise_rng(MixSeed(options.seed, 2, v));
+    plan.frames[v].resize(nfr);
+    for (int f = 0; f < nfr; ++f) {
+      FramePlan& fp = plan.frames[v][f];
+      const double a = static_cast<double>(f) / (nfr - 1);  // progress in [0, 1]
+      fp.animation_time =
+          plan.animation->WrapTime(plan.animation->StartTime() + offset + speed * f / options.fps);
+      // world_from_root: yaw wobble and horizontal drift.
+      Eigen::Isometry3d world_from_root = Eigen::Isometry3d::Identity();
+      const double yaw =
+          (yaw0 + options.root_yaw_wobble_deg * std::sin(2 * M_PI * a + phase)) * kDegToRad;
+      world_from_root.linear() =
+          Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()).toRotationMatrix();
+      world_from_root.translation() =
+          options.root_drift *
+          Eigen::Vector3d(std::sin(M_PI * a + phase), 0, std::cos(M_PI * a + phase) - 1);
+      // Look at the posed object's bounding-box centre.
+      const Eigen::Matrix3Xd posed = PosedVerticesInRoot(rig, plan, fp.animation_time);
+      const Eigen::Vector3d centre_root =
+          0.5 * (posed.rowwise().minCoeff() + posed.rowwise().maxCoeff());
+      const Eigen::Vector3d target = world_from_root * centre_root;
+      const double az = (az0 + sweep * a) * kDegToRad;
+      const double el =
+          (elevation[v] + options.elevation_wobble_deg * std::sin(2 * M_PI * a + phase)) *
+          kDegToRad;
+      const Eigen::Vector3d eye =
+          target + dist * Eigen::Vector3d(std::cos(el) * std::sin(az), std::sin(el),
+                                          std::cos(el) * std::cos(az));
+      const Eigen::Isometry3d camera_from_root =
+          CameraFromWorldLookAt(eye, target) * world_from_root;
+      fp.camera_from_root_gt = PoseFromIsometry(camera_from_root);
+      // Rough initialisation: a rotation about the root origin.
+      const Eigen::Vector3d axis = RandomUnitVector(noise_rng);
+      Eigen::Isometry3d noise = Eigen::Isometry3d::Identity();
+      noise.linear() =
+          Eigen::AngleAxisd(options.pose_noise_deg * kDegToRad, axis).toRotationMatrix();
+      fp.camera_from_root_init = PoseFromIsometry(camera_from_root * noise);
+    }
+  }
+  return plan;
+}
+
+namespace {
+
+// Per-frame geometry kept for the second (shading / flow) pass.
+struct FrameGeometry {
+  Eigen::Matrix3Xd vertices;  // camera coordinates
+  Eigen::Matrix3Xd normals;   // camera coordinates
+  RasterBuffers raster;
+};
+
+// Where the surface point (face, barycentrics) of one frame lands in another.
+struct FlowSample {
+  cv::Vec2f flow;
+  bool valid;
+};
+
+FlowSample ComputeFlow(const PinholeCamera& camera, const Eigen::Matrix3Xi& faces, int face,
+                       const Eigen::Vector3d& bary, int x, int y, const FrameGeometry& target,
+                       double tolerance) {
+  const Eigen::Vector3d p = bary[0] * target.vertices.col(faces(0, face)) +
+                            bary[1] * target.vertices.col(faces(1, face)) +
+                            bary[2] * target.vertices.col(faces(2, face));
+  double uv[2];
+  ProjectPoint(camera.intrinsics.data(), p.data(), uv);
+  FlowSample s;
+  s.flow = cv::Vec2f(static_cast<float>(uv[0] - (x + 0.5)), static_cast<float>(uv[1] - (y + 0.5)));
+  s.valid = false;
+  if (p.z() < kMinProjectionDepth) return s;
+  if (!(uv[0] >= 0 && uv[0] < camera.width && uv[1] >= 0 && uv[1] < camera.height)) return s;
+  const int px = static_cast<int>(uv[0]), py = static_cast<int>(uv[1]);
+  const int seen = target.raster.face.at<int>(py, px);
+  if (seen < 0) return s;  // lands on background: at a silhouette, call it occluded
+  if (seen == face) {
+    s.valid = true;
+    return s;
+  }
+  // Depth of the visible triangle's plane along the ray through uv (exact
+  // sub-pixel position), and the depth buffer at the pixel centre.
+  const Eigen::Vector3d a = target.vertices.col(faces(0, seen)),
+                        b = target.vertices.col(faces(1, seen)),
+                        c = target.vertices.col(faces(2, seen));
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  double dir[3];
+  PixelToRayDirection(camera.intrinsics.data(), uv, dir);
+  const Eigen::Vector3d d(dir[0], dir[1], dir[2]);
+  const double denom = n.dot(d);
+  const double tol = tolerance * p.z();
+  if (std::abs(denom) > 1e-9 * n.norm() * d.norm()) {
+    const double z_plane = n.dot(a) / denom;
+    if (z_plane > 0 && p.z() <= z_plane + tol) s.valid = true;
+  }
+  if (p.z() <= target.raster.depth.at<float>(py, px) + tol) s.valid = true;
+  return s;
+}
+
+}  // namespace
+
+SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
+                                const std::function<void(int, int)>& progress) {
+  const ScenePlan plan = PlanScene(rig, options);
+  const PinholeCamera& camera = plan.camera;
+  const int w = camera.width, h = camera.height;
+  const int nvid = options.num_videos, nfr = options.frames_per_video;
+  const FeatureEmbedding embedding;
+  const Eigen::Matrix3Xf vertex_colors = RigVertexColors(rig);
+  Eigen::Matrix3Xd rest_root = rig.rest_vertices;
+  rest_root.colwise() -= plan.normalization.center;
+  rest_root *= plan.normalization.scale;
+  Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> gt_colors(3, rig.NumVertices());
+  for (int i = 0; i < rig.NumVertices(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      gt_colors(k, i) =
+          static_cast<std::uint8_t>(std::lround(std::clamp(vertex_colors(k, i), 0.0f, 1.0f) * 255));
+    }
+  }
+  const Eigen::Vector3d light = options.light_in_camera.normalized();
+  const bool textured = rig.uvs.cols() == rig.NumVertices();
+
+  SynthScene scene;
+  scene.dataset.flow_gaps = options.flow_gaps;
+  std::sort(scene.dataset.flow_gaps.begin(), scene.dataset.flow_gaps.end());
+  scene.dataset.videos.resize(nvid);
+  scene.gt_meshes.resize(nvid);
+  for (int v = 0; v < nvid; ++v) {
+    Video& video = scene.dataset.videos[v];
+    char name[32];
+    std::snprintf(name, sizeof(name), "video_%03d", v);
+    video.name = name;
+    video.camera = camera;
+    video.frames.resize(nfr);
+    scene.gt_meshes[v].resize(nfr);
+    std::vector<FrameGeometry> geometry(nfr);
+    // Pass 1: pose, transform, rasterise.
+    ParallelFor(nfr, [&](int begin, int end) {
+      for (int f = begin; f < end; ++f) {
+        const FramePlan& fp = plan.frames[v][f];
+        const Eigen::Matrix3Xd posed = PosedVerticesInRoot(rig, plan, fp.animation_time);
+        const Eigen::Isometry3d camera_from_root = IsometryFromPose(fp.camera_from_root_gt.data());
+        FrameGeometry& g = geometry[f];
+        g.vertices = camera_from_root * posed;
+        g.normals = VertexNormals(g.vertices, rig.faces);
+        g.raster = Rasterize(camera, g.vertices, rig.faces);
+        TriangleMesh& mesh = scene.gt_meshes[v][f];
+        mesh.vertices = g.vertices;
+        mesh.faces = rig.faces;
+        mesh.colors = gt_colors;
+      }
+    });
+    // Pass 2: images, features and flow.
+    ParallelFor(nfr, [&](int begin, int end) {
+      for (int f = begin; f < end; ++f) {
+        const FrameGeometry& g = geometry[f];
+        Frame& frame = video.frames[f];
+        frame.index = f;
+        frame.root_pose_gt = plan.frames[v][f].camera_from_root_gt;
+        frame.root_pose_init = plan.frames[v][f].camera_from_root_init;
+        frame.rgb.create(h, w, CV_8UC3);
+        frame.rgb.setTo(
+            cv::Scalar(options.background[0], options.background[1], options.background[2]));
+        frame.mask.create(h, w, CV_8UC1);
+        frame.mask.setTo(kMaskBackground);
+        frame.depth = g.raster.depth.clone();
+        cv::Mat features(h, w, CV_32FC(kFeatureDim), cv::Scalar::all(0));
+        std::mt19937_64 rng(MixSeed(options.seed, 3, v, f));
+        for (int y = 0; y < h; ++y) {
+          for (int x = 0; x < w; ++x) {
+            const int face = g.raster.face.at<int>(y, x);
+            if (face < 0) continue;
+            frame.mask.at<unsigned char>(y, x) = kMaskObject;
+            const Eigen::Vector3d b = g.raster.Barycentrics(x, y);
+            const int i0 = rig.faces(0, face), i1 = rig.faces(1, face), i2 = rig.faces(2, face);
+            // Colour: vertex colour x material (x texture at the interpolated UV).
+            const RigMaterial& mat = rig.materials[rig.face_material[face]];
+            Eigen::Vector3f c = (b[0] * rig.vertex_colors.col(i0).cast<double>() +
+                                 b[1] * rig.vertex_colors.col(i1).cast<double>() +
+                                 b[2] * rig.vertex_colors.col(i2).cast<double>())
+                                    .cast<float>();
+            c = c.cwiseProduct(mat.base_color.head<3>().cast<float>());
+            if (mat.texture >= 0 && textured) {
+              const Eigen::Vector2d uv = b[0] * rig.uvs.col(i0).cast<double>() +
+                                         b[1] * rig.uvs.col(i1).cast<double>() +
+                                         b[2] * rig.uvs.col(i2).cast<double>();
+              c = c.cwiseProduct(SampleTexture(rig.textures[mat.texture], static_cast<float>(uv[0]),
+                                               static_cast<float>(uv[1])));
+            }
+            // Lambert + ambient with the normal turned towards the camera.
+            Eigen::Vector3d n =
+                b[0] * g.normals.col(i0) + b[1] * g.normals.col(i1) + b[2] * g.normals.col(i2);
+            const Eigen::Vector3d point =
+                b[0] * g.vertices.col(i0) + b[1] * g.vertices.col(i1) + b[2] * g.vertices.col(i2);
+            if (n.dot(point) > 0) n = -n;
+            const double len = n.norm();
+            const double lambert = len > 0 ? std::max(0.0, n.dot(light) / len) : 0.0;
+            const double shade = options.ambient + (1 - options.ambient) * lambert;
+            cv::Vec3b& px = frame.rgb.at<cv::Vec3b>(y, x);
+            for (int k = 0; k < 3; ++k) {
+              px[k] =
+                  static_cast<unsigned char>(std::lround(std::clamp(c[k] * shade, 0.0, 1.0) * 255));
+            }
+            // Features of the rest-pose point, plus noise.
+            const Eigen::Vector3d rest =
+                b[0] * rest_root.col(i0) + b[1] * rest_root.col(i1) + b[2] * rest_root.col(i2);
+            FeatureVector e = embedding(rest);
+            if (options.feature_noise > 0) {
+              for (int k = 0; k < kFeatureDim; ++k) e[k] += options.feature_noise * NormalDraw(rng);
+              e.normalize();
+            }
+            float* out = features.ptr<float>(y) + static_cast<size_t>(x) * kFeatureDim;
+            for (int k = 0; k < kFeatureDim; ++k) out[k] = static_cast<float>(e[k]);
+          }
+        }
+        features.convertTo(frame.features, CV_16F);
+        // Flow to t + gap and t - gap where that frame exists.
+        for (int gap : scene.dataset.flow_gaps) {
+          for (int sign : {1, -1}) {
+            const int other = f + sign * gap;
+            if (other < 0 || other >= nfr) continue;
+            cv::Mat flow(h, w, CV_32FC2, cv::Scalar(0, 0));
+            FlowField field;
+            field.gap = sign * gap;
+            field.valid = cv::Mat::zeros(h, w, CV_8UC1);
+            for (int y = 0; y < h; ++y) {
+              for (int x = 0; x < w; ++x) {
+                const int face = g.raster.face.at<int>(y, x);
+                if (face < 0) continue;
+                const FlowSample s =
+                    ComputeFlow(camera, rig.faces, face, g.raster.Barycentrics(x, y), x, y,
+                                geometry[other], options.occlusion_tolerance);
+                flow.at<cv::Vec2f>(y, x) = s.flow;
+                if (s.valid) field.valid.at<unsigned char>(y, x) = 255;
+              }
+            }
+            flow.convertTo(field.flow, CV_16F);
+            frame.flows.push_back(std::move(field));
+          }
+        }
+      }
+    });
+    if (progress) progress(v + 1, nvid);
+  }
+  return scene;
+}
+
+}  // namespace banmo::synth
