@@ -65,6 +65,21 @@ internal::ManifestVideo CheckVideo(const Dataset& dataset, const Video& video, i
   mv.present.depth = !f0.depth.empty();
   mv.present.root_poses_gt = f0.root_pose_gt.has_value();
   mv.present.gt_mesh = gt_meshes != nullptr || !f0.gt_mesh_path.empty();
+  // Video::present (set by LoadDataset) claims data the frames do not hold:
+  // most likely loaded with LoadOptions that skipped it. Refuse rather than
+  // silently drop it.
+  const VideoContents& claimed = video.present;
+  const char* dropped = claimed.features && !mv.present.features             ? "features"
+                        : claimed.flow && !mv.present.flow                   ? "flow"
+                        : claimed.depth && !mv.present.depth                 ? "depth"
+                        : claimed.gt_mesh && !mv.present.gt_mesh             ? "gt_mesh"
+                        : claimed.root_poses_gt && !mv.present.root_poses_gt ? "root_poses_gt"
+                                                                             : nullptr;
+  if (dropped != nullptr) {
+    ThrowInputError(where, ": Video::present lists ", dropped,
+                    " but the frames do not hold it (loaded with LoadOptions that skip it?); "
+                    "load everything or clear the flag to drop it");
+  }
   if (gt_meshes != nullptr && static_cast<int>((*gt_meshes)[v].size()) != n) {
     ThrowInputError(where, ": gt_meshes has ", (*gt_meshes)[v].size(), " meshes for ", n,
                     " frames");

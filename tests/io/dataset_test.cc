@@ -264,6 +264,29 @@ TEST(Dataset, WriteRejectsInconsistentMemory) {
   EXPECT_TRUE(fs::is_empty(tmp.path()));
 }
 
+TEST(Dataset, LoadedDatasetCanBeRewritten) {
+  TempDir tmp;
+  const std::string dir = WriteValid(tmp);
+  const Dataset l = LoadDataset(dir, LoadAll());
+  WriteDataset(l, tmp.path() + "/copy");  // GT meshes copied from gt_mesh_path
+  const Dataset c = LoadDataset(tmp.path() + "/copy", LoadAll());
+  EXPECT_TRUE(c.videos[1].present.gt_mesh);
+  EXPECT_EQ(testing::ReadText(c.videos[1].frames[4].gt_mesh_path),
+            testing::ReadText(l.videos[1].frames[4].gt_mesh_path));
+  EXPECT_EQ(MaxAbsDiff(c.videos[0].frames[2].flows[1].flow, l.videos[0].frames[2].flows[1].flow),
+            0);  // already quantised: the second round trip is exact
+  EXPECT_EQ(MaxAbsDiff(c.videos[0].frames[2].depth, l.videos[0].frames[2].depth), 0);
+  // Loaded without features: re-writing would drop them, so it is refused.
+  LoadOptions no_features;
+  no_features.load_features = false;
+  try {
+    WriteDataset(LoadDataset(dir, no_features), tmp.path() + "/partial");
+    FAIL() << "wrote a dataset whose features were not loaded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("features"), std::string::npos) << e.what();
+  }
+}
+
 // ---- One test per bad input: write a valid dataset, break one thing. ----
 
 TEST(DatasetBadInput, MissingFile) {

@@ -47,7 +47,6 @@ inline Dataset MakeSmallDataset(int w = 24, int h = 20, int frames = 5, unsigned
     video.camera.width = w;
     video.camera.height = h;
     video.camera.intrinsics = Eigen::Vector4d(30.5 + v, 31.25, w / 2.0, h / 2.0 + 0.5);
-    video.present = {true, true, true, true, true};
     for (int t = 0; t < frames; ++t) {
       Frame f;
       f.index = t;
