@@ -87,7 +87,7 @@ BENCHMARK(BM_EvaluatePair_Banmo)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_EvaluatePair_Surface(benchmark::State& state) {
   EvalOptions options;
-  options.protocol = EvalProtocol::kSurface;  // 30000 samples, 10000 ICP queries per direction
+  options.protocol = EvalProtocol::kSurface;  // 100000 samples, 10000 ICP queries per direction
   int iterations = 0;
   for (auto _ : state) iterations = EvaluatePair(Pred(), Gt(), options).icp.iterations;
   state.SetItemsProcessed(state.iterations());

@@ -41,7 +41,7 @@ struct EvalOptions {
   // Huber ICP: delta = huber_factor * median residual; > 0.
   double huber_factor = 2.0;
   // Surface protocol: samples per mesh (>= 100).
-  int num_samples = 30000;
+  int num_samples = 100000;
   // Surface protocol: ICP query points per direction (prefix of the samples;
   // 0 = all). The final metrics always use all samples.
   int icp_max_queries = 10000;
