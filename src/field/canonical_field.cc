@@ -5,6 +5,7 @@
 #include <random>
 
 #include "banmo/util/logging.h"
+#include "banmo/util/parallel.h"
 
 namespace banmo {
 namespace {
@@ -50,9 +51,11 @@ void ChainEncodingTranspose(const Eigen::MatrixXd& dpe_dx, const Eigen::MatrixXd
                             Eigen::Matrix3Xd* d_x) {
   const int n = static_cast<int>(d_pe.cols());
   d_x->resize(3, n);
-  for (int j = 0; j < n; ++j) {
-    d_x->col(j).noalias() = dpe_dx.middleCols(3 * j, 3).transpose() * d_pe.col(j);
-  }
+  ParallelFor(n, [&](int begin, int end) {
+    for (int j = begin; j < end; ++j) {
+      d_x->col(j).noalias() = dpe_dx.middleCols(3 * j, 3).transpose() * d_pe.col(j);
+    }
+  });
 }
 
 }  // namespace
@@ -203,8 +206,6 @@ void CanonicalField::ForwardBatch(const double* sdf_params, const double* color_
   Eigen::MatrixXd t;  // (1+F) x 3n
   sdf_mlp_.ForwardTangents(sdf_params, batch->sdf_cache, batch->dpe_dx, 3, &t);
   batch->dsdf_dx.resize(3, n);
-  for (int j = 0; j < n; ++j) batch->dsdf_dx.col(j) = t.block(0, 3 * j, 1, 3).transpose();
-
   // Colour MLP: one reverse pass per output channel gives d rgb_c / d input.
   const Eigen::ArrayXXd ds = batch->rgb.array() * (1.0 - batch->rgb.array());  // sigmoid'
   std::vector<Eigen::MatrixXd> dcin(3);
@@ -216,17 +217,21 @@ void CanonicalField::ForwardBatch(const double* sdf_params, const double* color_
   batch->drgb_dx.resize(3, 3 * n);
   batch->drgb_dview.setZero(3, 3 * n);
   batch->drgb_dappearance.resize(3, static_cast<Eigen::Index>(A) * n);
-  Eigen::MatrixXd jac(3, F + V + A);
-  for (int j = 0; j < n; ++j) {
-    for (int c = 0; c < 3; ++c) jac.row(c) = dcin[c].col(j).transpose();
-    batch->drgb_dx.middleCols(3 * j, 3).noalias() = jac.leftCols(F) * t.block(1, 3 * j, F, 3);
-    if (V > 0) {
-      batch->drgb_dview.middleCols(3 * j, 3).noalias() =
-          jac.middleCols(F, V) * batch->dview_enc.middleCols(3 * j, 3);
+  ParallelFor(n, [&](int begin, int end) {
+    Eigen::MatrixXd jac(3, F + V + A);
+    for (int j = begin; j < end; ++j) {
+      batch->dsdf_dx.col(j) = t.block(0, 3 * j, 1, 3).transpose();
+      for (int c = 0; c < 3; ++c) jac.row(c) = dcin[c].col(j).transpose();
+      batch->drgb_dx.middleCols(3 * j, 3).noalias() = jac.leftCols(F) * t.block(1, 3 * j, F, 3);
+      if (V > 0) {
+        batch->drgb_dview.middleCols(3 * j, 3).noalias() =
+            jac.middleCols(F, V) * batch->dview_enc.middleCols(3 * j, 3);
+      }
+      if (A > 0) {
+        batch->drgb_dappearance.middleCols(static_cast<Eigen::Index>(A) * j, A) = jac.rightCols(A);
+      }
     }
-    if (A > 0)
-      batch->drgb_dappearance.middleCols(static_cast<Eigen::Index>(A) * j, A) = jac.rightCols(A);
-  }
+  });
 }
 
 void CanonicalField::BackwardBatch(const double* sdf_params, const double* color_params,
@@ -281,7 +286,9 @@ void CanonicalField::SdfGradientBackward(const double* sdf_params, const FieldBa
   // S = sum_j c_j . grad sdf(x_j) = sum_j e_0^T J_mlp(pe_j) (dpe/dx_j c_j):
   // tangent v_j = dpe/dx_j c_j, tangent cotangent e_0.
   Eigen::MatrixXd v(D, n);
-  for (int j = 0; j < n; ++j) v.col(j).noalias() = dpe_dx->middleCols(3 * j, 3) * c.col(j);
+  ParallelFor(n, [&](int begin, int end) {
+    for (int j = begin; j < end; ++j) v.col(j).noalias() = dpe_dx->middleCols(3 * j, 3) * c.col(j);
+  });
   Eigen::MatrixXd cot = Eigen::MatrixXd::Zero(sdf_mlp_.OutputDim(), n);
   cot.row(0).setOnes();
   Eigen::MatrixXd a_bar, a_dot_bar;

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "banmo/util/logging.h"
+#include "banmo/util/parallel.h"
 
 namespace banmo {
 
@@ -37,33 +38,36 @@ void PositionalEncoding::EncodeBatch(const Eigen::Matrix3Xd& x, Eigen::MatrixXd*
   const int n = static_cast<int>(x.cols());
   const int D = OutputDim();
   out->resize(D, n);
-  if (d_out_dx != nullptr) d_out_dx->setZero(D, 3 * n);
-  for (int j = 0; j < n; ++j) {
-    double* o = out->col(j).data();
-    int r = 0;
-    if (options_.include_input) {
-      for (int c = 0; c < 3; ++c) {
-        o[r + c] = x(c, j);
-        if (d_out_dx != nullptr) (*d_out_dx)(r + c, 3 * j + c) = 1.0;
-      }
-      r += 3;
-    }
-    for (int l = 0; l < options_.num_bands; ++l) {
-      const double f = band_frequency_[l];
-      const double w = band_weight_[l];
-      for (int c = 0; c < 3; ++c) {
-        const double s = std::sin(f * x(c, j));
-        const double co = std::cos(f * x(c, j));
-        o[r + c] = w * s;
-        o[r + 3 + c] = w * co;
-        if (d_out_dx != nullptr) {
-          (*d_out_dx)(r + c, 3 * j + c) = w * f * co;
-          (*d_out_dx)(r + 3 + c, 3 * j + c) = -w * f * s;
+  if (d_out_dx != nullptr) d_out_dx->resize(D, 3 * n);
+  ParallelFor(n, [&](int begin, int end) {
+    if (d_out_dx != nullptr) d_out_dx->middleCols(3 * begin, 3 * (end - begin)).setZero();
+    for (int j = begin; j < end; ++j) {
+      double* o = out->col(j).data();
+      int r = 0;
+      if (options_.include_input) {
+        for (int c = 0; c < 3; ++c) {
+          o[r + c] = x(c, j);
+          if (d_out_dx != nullptr) (*d_out_dx)(r + c, 3 * j + c) = 1.0;
         }
+        r += 3;
       }
-      r += 6;
+      for (int l = 0; l < options_.num_bands; ++l) {
+        const double f = band_frequency_[l];
+        const double w = band_weight_[l];
+        for (int c = 0; c < 3; ++c) {
+          const double s = std::sin(f * x(c, j));
+          const double co = std::cos(f * x(c, j));
+          o[r + c] = w * s;
+          o[r + 3 + c] = w * co;
+          if (d_out_dx != nullptr) {
+            (*d_out_dx)(r + c, 3 * j + c) = w * f * co;
+            (*d_out_dx)(r + 3 + c, 3 * j + c) = -w * f * s;
+          }
+        }
+        r += 6;
+      }
     }
-  }
+  });
 }
 
 void PositionalEncoding::EncodeSecondDerivativeBatch(const Eigen::Matrix3Xd& x,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "banmo/util/logging.h"
@@ -64,6 +65,13 @@ void Mlp::InitializeDefault(uint32_t seed, double* params) const {
   }
 }
 
+// Heaviside step H(x) = 1 for x > 0, else 0, vectorisable: max(x, 0) / |x|
+// is exactly 1 for x > 0 (x / x) and 0 otherwise.
+template <typename Derived>
+static auto Step(const Eigen::ArrayBase<Derived>& x) {
+  return x.max(0.0) / x.abs().max(std::numeric_limits<double>::min());
+}
+
 // Applies the activation to a block of pre-activations; writes the
 // activations and their derivatives.
 static void ActivateBlock(const MlpOptions& options, const Eigen::Ref<const Eigen::MatrixXd>& z,
@@ -72,11 +80,19 @@ static void ActivateBlock(const MlpOptions& options, const Eigen::Ref<const Eige
     const double beta = options.softplus_beta;
     const Eigen::ArrayXXd bz = beta * z.array();
     const Eigen::ArrayXXd e = (-bz.abs()).exp();  // in (0, 1]: no overflow
-    a.array() = z.array().max(0.0) + e.log1p() / beta;
-    da.array() = (bz > 0.0).select(1.0 / (1.0 + e), e / (1.0 + e));
+    // log1p(e) via the vectorisable log with the classic correction
+    // log1p(e) = log(u) - ((u - 1) - e) / u, u = 1 + e (exact to rounding,
+    // also for e below machine epsilon where it returns e); Eigen's double
+    // log1p is scalar and was the bottleneck of the forward pass.
+    const Eigen::ArrayXXd u = 1.0 + e;
+    a.array() = z.array().max(0.0) + (u.log() - ((u - 1.0) - e) / u) / beta;
+    // sigmoid(bz) = (bz > 0 ? 1 : e) / (1 + e), written with max and the
+    // 0/1 step H so that Eigen vectorises it (select() compiled to scalar
+    // branches here).
+    da.array() = e.max(Step(bz)) / u;
   } else {
     a.array() = z.array().max(0.0);
-    da.array() = (z.array() > 0.0).cast<double>();
+    da.array() = Step(z.array());
   }
 }
 
@@ -97,17 +113,22 @@ void Mlp::ForwardBatch(const double* params, const Eigen::MatrixXd& inputs, MlpC
       cache->dact[l].resize(dims_[l + 1], n);
     }
   }
+  // Tiles of kTile samples run through all layers while their activations
+  // are in cache; the activation temporaries stay tile-sized.
+  constexpr int kTile = 256;
   ParallelFor(n, [&](int begin, int end) {
-    const int m = end - begin;
-    for (int l = 0; l < L; ++l) {
-      const ConstWeightMap w(params + weight_offset_[l], dims_[l + 1], dims_[l]);
-      const Eigen::Map<const Eigen::VectorXd> b(params + bias_offset_[l], dims_[l + 1]);
-      auto z = cache->z[l].middleCols(begin, m);
-      z.noalias() = w * cache->a[l].middleCols(begin, m);
-      z.colwise() += b;
-      if (l + 1 < L) {
-        ActivateBlock(options_, z, cache->a[l + 1].middleCols(begin, m),
-                      cache->dact[l].middleCols(begin, m));
+    for (int t0 = begin; t0 < end; t0 += kTile) {
+      const int m = std::min(kTile, end - t0);
+      for (int l = 0; l < L; ++l) {
+        const ConstWeightMap w(params + weight_offset_[l], dims_[l + 1], dims_[l]);
+        const Eigen::Map<const Eigen::VectorXd> b(params + bias_offset_[l], dims_[l + 1]);
+        auto z = cache->z[l].middleCols(t0, m);
+        z.noalias() = w * cache->a[l].middleCols(t0, m);
+        z.colwise() += b;
+        if (l + 1 < L) {
+          ActivateBlock(options_, z, cache->a[l + 1].middleCols(t0, m),
+                        cache->dact[l].middleCols(t0, m));
+        }
       }
     }
   });
