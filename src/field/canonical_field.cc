@@ -11,8 +11,15 @@ namespace banmo {
 namespace {
 
 const CanonicalFieldOptions& Checked(const CanonicalFieldOptions& options) {
-  CHECK(options.Check()) << "invalid CanonicalFieldOptions";
+  std::string error;
+  CHECK(options.Check(&error)) << "invalid CanonicalFieldOptions: " << error;
   return options;
+}
+
+// Writes msg to *error (if not null) and returns false.
+bool Fail(std::string* error, const std::string& msg) {
+  if (error != nullptr) *error = msg;
+  return false;
 }
 
 int ColorInputDimOf(const CanonicalFieldOptions& o) {
@@ -60,16 +67,35 @@ void ChainEncodingTranspose(const Eigen::MatrixXd& dpe_dx, const Eigen::MatrixXd
 
 }  // namespace
 
-bool CanonicalFieldOptions::Check() const {
-  if (!position_encoding.Check() || !position_encoding.include_input) return false;
-  if (use_view_direction && !view_encoding.Check()) return false;
-  if (sdf_width <= 0 || sdf_layers < 1 || geometry_feature_dim < 0) return false;
-  if (color_width <= 0 || color_layers < 0) return false;
-  if (appearance_code_dim < 0) return false;
-  if (embedding_width <= 0 || embedding_layers < 0) return false;
-  if (!(softplus_beta > 0.0) || !std::isfinite(softplus_beta)) return false;
-  if (!(init_sphere_radius > 0.0) || !std::isfinite(init_sphere_radius)) return false;
-  return ColorInputDimOf(*this) > 0;
+bool CanonicalFieldOptions::Check(std::string* error) const {
+  std::string sub;
+  if (!position_encoding.Check(&sub)) return Fail(error, "position_encoding." + sub);
+  if (!position_encoding.include_input) {
+    return Fail(error, "position_encoding.include_input must be true (geometric initialisation)");
+  }
+  if (use_view_direction && !view_encoding.Check(&sub)) {
+    return Fail(error, "view_encoding." + sub);
+  }
+  if (sdf_width <= 0) return Fail(error, "sdf_width must be > 0");
+  if (sdf_layers < 1) return Fail(error, "sdf_layers must be >= 1");
+  if (geometry_feature_dim < 0) return Fail(error, "geometry_feature_dim must be >= 0");
+  if (color_width <= 0) return Fail(error, "color_width must be > 0");
+  if (color_layers < 0) return Fail(error, "color_layers must be >= 0");
+  if (appearance_code_dim < 0) return Fail(error, "appearance_code_dim must be >= 0");
+  if (embedding_width <= 0) return Fail(error, "embedding_width must be > 0");
+  if (embedding_layers < 0) return Fail(error, "embedding_layers must be >= 0");
+  if (!(softplus_beta > 0.0) || !std::isfinite(softplus_beta)) {
+    return Fail(error, "softplus_beta must be finite and > 0");
+  }
+  if (!(init_sphere_radius > 0.0) || !std::isfinite(init_sphere_radius)) {
+    return Fail(error, "init_sphere_radius must be finite and > 0");
+  }
+  if (ColorInputDimOf(*this) <= 0) {
+    return Fail(error,
+                "the colour MLP has no input: set geometry_feature_dim > 0, "
+                "use_view_direction or appearance_code_dim > 0");
+  }
+  return true;
 }
 
 CanonicalField::CanonicalField(const CanonicalFieldOptions& options)

@@ -8,8 +8,21 @@
 
 namespace banmo {
 
-bool EmbeddingMatcherOptions::Check() const {
-  return temperature > 0.0 && std::isfinite(temperature) && num_kdtrees > 0 && checks > 0;
+namespace {
+// Writes msg to *error (if not null) and returns false.
+bool Fail(std::string* error, const std::string& msg) {
+  if (error != nullptr) *error = msg;
+  return false;
+}
+}  // namespace
+
+bool EmbeddingMatcherOptions::Check(std::string* error) const {
+  if (!(temperature > 0.0) || !std::isfinite(temperature)) {
+    return Fail(error, "temperature must be finite and > 0");
+  }
+  if (num_kdtrees <= 0) return Fail(error, "num_kdtrees must be > 0");
+  if (checks <= 0) return Fail(error, "checks must be > 0");
+  return true;
 }
 
 struct EmbeddingMatcher::Index {
@@ -18,7 +31,8 @@ struct EmbeddingMatcher::Index {
 };
 
 EmbeddingMatcher::EmbeddingMatcher(const EmbeddingMatcherOptions& options) : options_(options) {
-  CHECK(options_.Check()) << "invalid EmbeddingMatcherOptions";
+  std::string error;
+  CHECK(options_.Check(&error)) << "invalid EmbeddingMatcherOptions: " << error;
 }
 
 EmbeddingMatcher::~EmbeddingMatcher() = default;

@@ -8,15 +8,29 @@
 
 namespace banmo {
 
-bool PositionalEncodingOptions::Check() const {
-  if (num_bands < 0) return false;
-  if (!(base_frequency > 0.0) || !std::isfinite(base_frequency)) return false;
-  return (include_input ? 1 : 0) + 2 * num_bands > 0;
+namespace {
+// Writes msg to *error (if not null) and returns false.
+bool Fail(std::string* error, const std::string& msg) {
+  if (error != nullptr) *error = msg;
+  return false;
+}
+}  // namespace
+
+bool PositionalEncodingOptions::Check(std::string* error) const {
+  if (num_bands < 0) return Fail(error, "num_bands must be >= 0");
+  if (!(base_frequency > 0.0) || !std::isfinite(base_frequency)) {
+    return Fail(error, "base_frequency must be finite and > 0");
+  }
+  if (!include_input && num_bands == 0) {
+    return Fail(error, "num_bands must be > 0 when include_input is false (empty encoding)");
+  }
+  return true;
 }
 
 PositionalEncoding::PositionalEncoding(const PositionalEncodingOptions& options)
     : options_(options) {
-  CHECK(options_.Check()) << "invalid PositionalEncodingOptions";
+  std::string error;
+  CHECK(options_.Check(&error)) << "invalid PositionalEncodingOptions: " << error;
   band_weight_.assign(options_.num_bands, 1.0);
   band_frequency_.resize(options_.num_bands);
   for (int l = 0; l < options_.num_bands; ++l) {

@@ -26,16 +26,24 @@ void CheckGroups(const std::vector<int>& group_begin, int n) {
 
 }  // namespace
 
-bool MlpOptions::Check() const {
-  return input_dim > 0 && output_dim > 0 && width > 0 && hidden_layers >= 0 &&
-         softplus_beta > 0.0 && std::isfinite(softplus_beta);
+bool MlpOptions::Check(std::string* error) const {
+  auto fail = [&](const char* msg) {
+    if (error != nullptr) *error = msg;
+    return false;
+  };
+  if (input_dim <= 0) return fail("input_dim must be > 0");
+  if (output_dim <= 0) return fail("output_dim must be > 0");
+  if (width <= 0) return fail("width must be > 0");
+  if (hidden_layers < 0) return fail("hidden_layers must be >= 0");
+  if (!(softplus_beta > 0.0) || !std::isfinite(softplus_beta)) {
+    return fail("softplus_beta must be finite and > 0");
+  }
+  return true;
 }
 
 Mlp::Mlp(const MlpOptions& options) : options_(options) {
-  CHECK(options_.Check()) << "invalid MlpOptions (input_dim " << options_.input_dim
-                          << ", output_dim " << options_.output_dim << ", width " << options_.width
-                          << ", hidden_layers " << options_.hidden_layers << ", softplus_beta "
-                          << options_.softplus_beta << ")";
+  std::string error;
+  CHECK(options_.Check(&error)) << "invalid MlpOptions: " << error;
   dims_.push_back(options_.input_dim);
   for (int h = 0; h < options_.hidden_layers; ++h) dims_.push_back(options_.width);
   dims_.push_back(options_.output_dim);

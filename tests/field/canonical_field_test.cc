@@ -319,7 +319,9 @@ TEST(CanonicalField, OptionsCheck) {
   CanonicalFieldOptions o;
   EXPECT_TRUE(o.Check());
   o.position_encoding.include_input = false;
-  EXPECT_FALSE(o.Check());
+  std::string error;
+  EXPECT_FALSE(o.Check(&error));
+  EXPECT_NE(error.find("position_encoding.include_input"), std::string::npos) << error;
   o = CanonicalFieldOptions();
   o.geometry_feature_dim = 0;
   o.use_view_direction = false;
@@ -327,7 +329,12 @@ TEST(CanonicalField, OptionsCheck) {
   EXPECT_FALSE(o.Check());  // the colour MLP would have no input
   o = CanonicalFieldOptions();
   o.init_sphere_radius = 0.0;
-  EXPECT_FALSE(o.Check());
+  EXPECT_FALSE(o.Check(&error));
+  EXPECT_NE(error.find("init_sphere_radius"), std::string::npos) << error;
+  o = CanonicalFieldOptions();
+  o.position_encoding.num_bands = -2;
+  EXPECT_FALSE(o.Check(&error));
+  EXPECT_EQ(error, "position_encoding.num_bands must be >= 0");
 }
 
 }  // namespace

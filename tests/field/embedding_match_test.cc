@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "banmo/util/parallel.h"
 #include "field_test_util.h"
 
 namespace banmo {
@@ -151,6 +152,31 @@ TEST(EmbeddingMatch, ZeroNormFeatureAndEmbeddingAreFinite) {
     EXPECT_TRUE(r.x_hat.allFinite());
     EXPECT_TRUE(r.weights.allFinite());
     EXPECT_NEAR(r.weights.sum(), 1.0, 1e-15);
+  }
+}
+
+// Match is called concurrently from the ray cost functions' batched pass.
+TEST(EmbeddingMatch, ConcurrentMatchesEqualSerial) {
+  const Scene scene(4);
+  Eigen::Matrix3Xd grid;
+  Eigen::MatrixXd psi;
+  MakeGrid(scene, &grid, &psi);
+  EmbeddingMatcher matcher;  // FLANN kd-trees
+  matcher.Build(grid, psi);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-0.9, 0.9);
+  std::vector<Eigen::VectorXd> features;
+  for (int i = 0; i < 300; ++i)
+    features.push_back(scene.Psi(Eigen::Vector3d(u(rng), u(rng), u(rng))));
+  std::vector<MatchResult> serial(features.size()), parallel(features.size());
+  for (size_t i = 0; i < features.size(); ++i) matcher.Match(features[i], 32, &serial[i]);
+  SetNumThreads(2);
+  ParallelFor(static_cast<int>(features.size()), [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) matcher.Match(features[i], 32, &parallel[i]);
+  });
+  for (size_t i = 0; i < features.size(); ++i) {
+    EXPECT_EQ(serial[i].indices, parallel[i].indices);
+    EXPECT_EQ(serial[i].x_hat, parallel[i].x_hat);
   }
 }
 

@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "banmo/field/encoding.h"
@@ -63,7 +64,9 @@ struct CanonicalFieldOptions {
   static constexpr int kEmbeddingDim = 16;
 
   // True when all fields are valid.
-  bool Check() const;
+  // If error is not null, a failing check writes which field is wrong and
+  // what was expected (e.g. for an InputError naming the config key).
+  bool Check(std::string* error = nullptr) const;
 };
 
 // Inputs, outputs, input Jacobians and caches of a batched field pass over n

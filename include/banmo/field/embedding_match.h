@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace banmo {
@@ -43,7 +44,9 @@ struct EmbeddingMatcherOptions {
   int checks = 256;
 
   // True when the options are valid.
-  bool Check() const;
+  // If error is not null, a failing check writes which field is wrong and
+  // what was expected (e.g. for an InputError naming the config key).
+  bool Check(std::string* error = nullptr) const;
 };
 
 struct MatchResult {

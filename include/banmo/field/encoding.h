@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <string>
 #include <vector>
 
 namespace banmo {
@@ -32,7 +33,9 @@ struct PositionalEncodingOptions {
 
   // True when the options are valid (num_bands >= 0, base_frequency > 0,
   // OutputDim() > 0).
-  bool Check() const;
+  // If error is not null, a failing check writes which field is wrong and
+  // what was expected (e.g. for an InputError naming the config key).
+  bool Check(std::string* error = nullptr) const;
 };
 
 class PositionalEncoding {

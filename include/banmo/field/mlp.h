@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace banmo {
@@ -47,7 +48,9 @@ struct MlpOptions {
   double softplus_beta = 100.0;
 
   // True when the options are valid.
-  bool Check() const;
+  // If error is not null, a failing check writes which field is wrong and
+  // what was expected (e.g. for an InputError naming the config key).
+  bool Check(std::string* error = nullptr) const;
 };
 
 // Activation functions shared by the templated and batched paths.
