@@ -8,6 +8,7 @@
 #include <string>
 
 #include "banmo/io/dataset.h"
+#include "banmo/io/prepare.h"
 #include "test_dataset_util.h"
 
 namespace banmo {
@@ -134,6 +135,86 @@ TEST(PrepareCommand, BadArguments) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("--video FILE or --frames DIR"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(tmp.path() + "/ds"));
+}
+
+}  // namespace
+}  // namespace banmo
+
+namespace banmo {
+namespace {
+
+// `banmo prepare` (library call) on a sequence rendered by `banmo synth`:
+// DIS flow against the renderer's exact flow, in pixels the renderer marks
+// visible in both frames.
+TEST(PrepareOnSynth, RecoversRenderedFlow) {
+  TempDir tmp;
+  const std::string syn = tmp.path() + "/syn";
+  const RunResult r = RunBanmo(tmp,
+                               "synth --rig quadruped --videos 1 --frames 12 --size 256 "
+                               "--gaps 1,4 --seed 3 --out " +
+                                   syn);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Dataset gt = LoadDataset(syn);
+  ASSERT_EQ(gt.videos.size(), 1u);
+  PrepareOptions options;
+  options.frames_dir = syn + "/" + gt.videos[0].name + "/rgb";
+  options.masks_dir = syn + "/" + gt.videos[0].name + "/mask";
+  options.mask_format = MaskFormat::kBinary;
+  options.gaps = {1, 4};
+  const Dataset d = PrepareDataset(options);
+  ASSERT_EQ(d.videos[0].frames.size(), gt.videos[0].frames.size());
+  // Per gap: EPE over pixels the renderer marks visible in both frames, the
+  // mean rendered flow magnitude there (= EPE of a zero flow), and the EPE
+  // over those pixels that the forward-backward check also keeps.
+  for (int gap : {1, 4}) {
+    for (int sign : {1, -1}) {
+      double sum_epe = 0, sum_mag = 0, sum_kept = 0;
+      long n = 0, n_kept = 0;
+      for (std::size_t t = 0; t < gt.videos[0].frames.size(); ++t) {
+        const FlowField* g = gt.videos[0].frames[t].FlowForGap(sign * gap);
+        const FlowField* p = d.videos[0].frames[t].FlowForGap(sign * gap);
+        ASSERT_EQ(g == nullptr, p == nullptr);
+        if (g == nullptr) continue;
+        cv::Mat gf, pf;
+        g->flow.convertTo(gf, CV_32F);
+        p->flow.convertTo(pf, CV_32F);
+        for (int y = 0; y < gf.rows; ++y) {
+          for (int x = 0; x < gf.cols; ++x) {
+            if (!g->valid.at<unsigned char>(y, x)) continue;
+            const cv::Vec2f e = gf.at<cv::Vec2f>(y, x) - pf.at<cv::Vec2f>(y, x);
+            const double epe = std::hypot(e[0], e[1]);
+            sum_epe += epe;
+            sum_mag += cv::norm(gf.at<cv::Vec2f>(y, x));
+            ++n;
+            if (p->valid.at<unsigned char>(y, x)) {
+              sum_kept += epe;
+              ++n_kept;
+            }
+          }
+        }
+      }
+      ASSERT_GT(n, 0);
+      const double epe = sum_epe / n;
+      const double magnitude = sum_mag / n;
+      const double epe_kept = sum_kept / std::max(1L, n_kept);
+      std::printf(
+          "synth quadruped 256x256, gap %+d: DIS EPE %.2f px over %ld visible pixels (mean "
+          "rendered flow %.2f px); forward-backward check keeps %.0f %% of them, EPE there "
+          "%.2f px\n",
+          sign * gap, epe, n, magnitude, 100.0 * n_kept / n, epe_kept);
+      if (gap == 1) {
+        // Measured: EPE 2.7-3.3 px for 9.4 px of mean motion (ratio 0.29-0.35):
+        // the smooth, shaded colours of the rendered creature leave DIS an
+        // aperture problem (its warp matches the colours about as well as
+        // the exact flow does). Bound: ratio 0.5, i.e. 1.5x the measurement
+        // and half the error of a zero flow.
+        EXPECT_LT(epe, 0.5 * magnitude) << "gap " << sign * gap;
+      }
+      // Gap 4 (about 25 px of articulated motion): DIS fails on this
+      // sequence (measured EPE 28-32 px, no better than a zero flow); the
+      // numbers are printed and reported in docs/dataset.md, not asserted.
+    }
+  }
 }
 
 }  // namespace
