@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
 
 #include "banmo/io/npy.h"
 #include "banmo/util/error.h"
@@ -279,6 +280,42 @@ TEST(Prepare, FeaturesAreZeroOutsideTheMask) {
   EXPECT_EQ(f32.at<FeatureVec>(0, 0)[3], 0.0f);
   WriteNpy(root + "/features/2.npy", cv::Mat(24, 32, CV_32FC(3), cv::Scalar::all(0.5)));
   ExpectPrepareError(o, {"features/2.npy", "(24, 32, 16)"});
+}
+
+TEST(Prepare, VideoFileInput) {
+  TempDir tmp;
+  const std::string video = tmp.path() + "/clip.avi";
+  {
+    // Motion-JPEG in AVI: OpenCV's built-in writer, no external codec needed.
+    cv::VideoWriter writer(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10,
+                           cv::Size(64, 48));
+    ASSERT_TRUE(writer.isOpened());
+    cv::RNG rng(4);
+    for (int t = 0; t < 5; ++t) {
+      cv::Mat frame(48, 64, CV_8UC3);
+      rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+      writer.write(frame);
+    }
+  }
+  std::filesystem::create_directories(tmp.path() + "/masks");
+  for (int t = 0; t < 6; ++t) {  // one more mask than frames: the extra one is unused
+    cv::Mat mask(48, 64, CV_8UC1, cv::Scalar(0));
+    mask(cv::Rect(10, 10, 20, 20)).setTo(255);
+    cv::imwrite(tmp.path() + "/masks/m" + std::to_string(t) + ".png", mask);
+  }
+  PrepareOptions o;
+  o.video_path = video;
+  o.masks_dir = tmp.path() + "/masks";
+  o.gaps = {1, 2};
+  o.max_frames = 4;
+  const Dataset d = PrepareDataset(o);
+  ASSERT_EQ(d.videos[0].frames.size(), 4u);
+  EXPECT_EQ(d.videos[0].camera.width, 64);
+  EXPECT_EQ(d.videos[0].frames[3].flows.size(), 2u);  // bw 1 and bw 2
+  WriteDataset(d, tmp.path() + "/ds");
+  EXPECT_EQ(LoadDataset(tmp.path() + "/ds").NumFrames(), 4);
+  o.video_path = tmp.path() + "/missing.avi";
+  ExpectPrepareError(o, {"missing.avi", "cannot open"});
 }
 
 }  // namespace
