@@ -28,16 +28,31 @@ void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bone
     jacobian->d_x.setIdentity();
     return;
   }
-  // Jet directions: [x (3), bone (10), bone_t (7)].
-  constexpr int kDim = 3 + kBoneSize + kPoseSize;
-  using J = ceres::Jet<double, kDim>;
-  std::vector<double> logits(num_bones);
+  // Values first (doubles): logits, points and weights of every bone.
+  std::vector<double> logits(num_bones), w(num_bones);
   Eigen::Matrix<double, 3, Eigen::Dynamic> points(3, num_bones);
-  // Per-bone Jacobians of (logit, point) wrt the 20 local directions.
-  std::vector<Eigen::Matrix<double, 4, kDim>> local(num_bones);
+  for (int b = 0; b < num_bones; ++b) {
+    const double* bone = bones + kBoneSize * b;
+    const double* pose = bones_t + kPoseSize * b;
+    if (direction == WarpDirection::kBackward) {
+      BackwardBoneTerm(bone, pose, x, &logits[b], points.col(b).data());
+    } else {
+      ForwardBoneTerm(bone, pose, x, &logits[b], points.col(b).data());
+    }
+  }
+  SkinningWeights(num_bones, logits.data(), w.data());
+  const Eigen::Vector3d blended = points * Eigen::Map<const Eigen::VectorXd>(w.data(), num_bones);
+  std::copy(blended.data(), blended.data() + 3, out);
+
+  // Derivatives: every term of bone b is scaled by its weight w_b, so bones
+  // whose weight is below kNegligibleSkinningWeight contribute less than
+  // rounding and are skipped (their Jacobian columns stay zero).
+  constexpr int kDim = 3 + kBoneSize + kPoseSize;  // Jets over [x, bone, bone_t]
+  using J = ceres::Jet<double, kDim>;
   J xj[3];
   for (int k = 0; k < 3; ++k) xj[k] = J(x[k], k);
   for (int b = 0; b < num_bones; ++b) {
+    if (w[b] < kNegligibleSkinningWeight) continue;
     J bone[kBoneSize], pose[kPoseSize];
     for (int k = 0; k < kBoneSize; ++k) bone[k] = J(bones[kBoneSize * b + k], 3 + k);
     for (int k = 0; k < kPoseSize; ++k) {
@@ -49,21 +64,10 @@ void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bone
     } else {
       ForwardBoneTerm(bone, pose, xj, &logit, p);
     }
-    logits[b] = logit.a;
-    local[b].row(0) = logit.v.transpose();
-    for (int k = 0; k < 3; ++k) {
-      points(k, b) = p[k].a;
-      local[b].row(1 + k) = p[k].v.transpose();
-    }
-  }
-  std::vector<double> w(num_bones);
-  SkinningWeights(num_bones, logits.data(), w.data());
-  const Eigen::Vector3d blended = points * Eigen::Map<const Eigen::VectorXd>(w.data(), num_bones);
-  std::copy(blended.data(), blended.data() + 3, out);
-  for (int b = 0; b < num_bones; ++b) {
-    // d out / d (locals of bone b) = (p_b - out) w_b dl_b + w_b dp_b.
-    const Eigen::Matrix<double, 3, kDim> d_local =
-        w[b] * ((points.col(b) - blended) * local[b].row(0) + local[b].bottomRows<3>());
+    // d out / d (locals of bone b) = w_b (p_b - out) dl_b + w_b dp_b.
+    Eigen::Matrix<double, 3, kDim> d_local;
+    const Eigen::Vector3d lever = points.col(b) - blended;
+    for (int r = 0; r < 3; ++r) d_local.row(r) = w[b] * (lever[r] * logit.v + p[r].v).transpose();
     jacobian->d_x += d_local.leftCols<3>();
     jacobian->d_bones.middleCols<kBoneSize>(kBoneSize * b) = d_local.middleCols<kBoneSize>(3);
     jacobian->d_bones_t.middleCols<kPoseSize>(kPoseSize * b) = d_local.rightCols<kPoseSize>();

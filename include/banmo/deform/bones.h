@@ -139,6 +139,11 @@ struct WarpJacobian {
 
 enum class WarpDirection { kBackward, kForward };
 
+// Skinning weights below this contribute less than double rounding to a
+// warp's derivatives (every term of a bone is scaled by its weight) and are
+// skipped by WarpWithJacobian.
+inline constexpr double kNegligibleSkinningWeight = 1e-16;
+
 // Evaluates the warp (as BackwardWarp / ForwardWarp) and its Jacobian.
 void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bones,
                       const double* bones_t, const double* x, double* out, WarpJacobian* jacobian);

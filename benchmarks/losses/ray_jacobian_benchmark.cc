@@ -1,0 +1,94 @@
+// Rays per second of Jacobian assembly (residuals + Jacobians of every loss
+// term of a ray): the batched mixed-mode path (RayBatch, DESIGN.md Sec. 5)
+// against the full-Jet reference, at MLP width 16/32/64, 32 samples per ray,
+// 8 bones, all losses on, positional encoding with 6 bands, 3 hidden SDF
+// layers.
+//
+//   ./build/bin/ray_jacobian_benchmark --benchmark_counters_tabular=true
+#include <benchmark/benchmark.h>
+
+#include "banmo/losses/ray_batch.h"
+#include "banmo/losses/ray_reference.h"
+#include "banmo/losses/test_scene.h"
+
+namespace banmo {
+namespace {
+
+TestSceneOptions BenchmarkScene(int width, int num_rays) {
+  TestSceneOptions o;
+  o.mlp_width = width;
+  o.sdf_layers = 3;
+  o.num_bands = 6;
+  o.appearance_dim = 4;
+  o.num_bones = 8;
+  o.num_rays = num_rays;
+  o.num_samples = 32;
+  o.grid_points = 1024;
+  o.match_top_k = 16;
+  return o;
+}
+
+constexpr LossTerm kTerms[] = {LossTerm::kRgb,          LossTerm::kSilhouette, LossTerm::kFlow,
+                               LossTerm::kFeatureMatch, LossTerm::kCycle2d,    LossTerm::kCycle3d};
+
+void BM_RayJacobian_Batched(benchmark::State& state) {
+  const int width = static_cast<int>(state.range(0));
+  constexpr int kRays = 512;
+  TestScene scene = MakeTestScene(BenchmarkScene(width, kRays));
+  for (auto _ : state) {
+    scene.batch->EvaluateAll(/*jacobians=*/true);
+    benchmark::DoNotOptimize(scene.batch->evaluation(0).residuals.data());
+  }
+  state.counters["rays_per_s"] = benchmark::Counter(static_cast<double>(kRays) * state.iterations(),
+                                                    benchmark::Counter::kIsRate);
+  state.counters["weights"] =
+      scene.model->sdf_size() + scene.model->color_size() + scene.model->embedding_size();
+}
+
+void BM_RayJacobian_FullJet(benchmark::State& state) {
+  const int width = static_cast<int>(state.range(0));
+  TestScene scene = MakeTestScene(BenchmarkScene(width, 1));
+  RayBatch& batch = *scene.batch;
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  std::vector<std::vector<double*>> params;
+  for (LossTerm term : kTerms) {
+    costs.push_back(MakeReferenceCostFunction(batch, 0, term));
+    params.push_back(batch.TermParameterBlocks(0, term));
+  }
+  std::vector<std::vector<double>> residuals(costs.size()), jac_storage;
+  for (auto _ : state) {
+    for (size_t t = 0; t < costs.size(); ++t) {
+      const ceres::CostFunction& c = *costs[t];
+      residuals[t].resize(c.num_residuals());
+      std::vector<std::vector<double>> jac(c.parameter_block_sizes().size());
+      std::vector<double*> jac_ptr(jac.size());
+      for (size_t b = 0; b < jac.size(); ++b) {
+        jac[b].resize(c.num_residuals() * c.parameter_block_sizes()[b]);
+        jac_ptr[b] = jac[b].data();
+      }
+      c.Evaluate(params[t].data(), residuals[t].data(), jac_ptr.data());
+      benchmark::DoNotOptimize(jac_ptr.data());
+    }
+  }
+  state.counters["rays_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+BENCHMARK(BM_RayJacobian_Batched)
+    ->Arg(16)
+    ->Arg(32)
+    ->Arg(64)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_RayJacobian_FullJet)
+    ->Arg(16)
+    ->Arg(32)
+    ->Arg(64)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(2)
+    ->UseRealTime();
+
+}  // namespace
+}  // namespace banmo
+
+BENCHMARK_MAIN();
