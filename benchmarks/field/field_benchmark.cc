@@ -3,6 +3,7 @@
 // PE(L = 6) input (39), 3 hidden layers of width 16/32/64, output 1 + 8.
 // Args: {width, threads}.
 #include <benchmark/benchmark.h>
+#include <ceres/jet.h>
 
 #include <random>
 
@@ -115,6 +116,32 @@ void BM_Mlp_BackwardOfTangentPerGroup(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kN);
 }
 
+// Reference cost for comparison: ONE ray's (32 samples) weight gradient
+// through the templated path with Jets over all weights (chunks of 32
+// derivative slots), i.e. what pure autodiff would pay per residual row.
+void BM_Mlp_FullJetOneRay(benchmark::State& state) {
+  SetNumThreads(1);
+  Setup s(static_cast<int>(state.range(0)));
+  using J = ceres::Jet<double, 32>;
+  const int P = s.mlp.NumParameters();
+  std::vector<J> pj(P), xj(s.mlp.InputDim()), out(s.mlp.OutputDim());
+  Eigen::VectorXd grad(P);
+  for (auto _ : state) {
+    for (int c0 = 0; c0 < P; c0 += 32) {
+      for (int i = 0; i < P; ++i) {
+        pj[i] = J(s.params[i]);
+        if (i >= c0 && i < c0 + 32) pj[i].v[i - c0] = 1.0;
+      }
+      for (int j = 0; j < kSamplesPerRay; ++j) {
+        for (int i = 0; i < s.mlp.InputDim(); ++i) xj[i] = J(s.inputs(i, j));
+        s.mlp.Forward(pj.data(), xj.data(), out.data());
+        for (int i = c0; i < std::min(P, c0 + 32); ++i) grad[i] = out[0].v[i - c0];
+      }
+    }
+    benchmark::DoNotOptimize(grad.data());
+  }
+}
+
 // Whole canonical field (default options) forward with all input Jacobians.
 void BM_CanonicalField_ForwardBatchWithJacobians(benchmark::State& state) {
   SetNumThreads(static_cast<int>(state.range(0)));
@@ -142,6 +169,7 @@ BENCHMARK(BM_Mlp_BackwardPerGroup)->BANMO_WIDTH_ARGS;
 BENCHMARK(BM_Mlp_BackwardOneGroup)->BANMO_WIDTH_ARGS;
 BENCHMARK(BM_Mlp_ForwardTangents3)->BANMO_WIDTH_ARGS;
 BENCHMARK(BM_Mlp_BackwardOfTangentPerGroup)->BANMO_WIDTH_ARGS;
+BENCHMARK(BM_Mlp_FullJetOneRay)->Arg(16)->Arg(32)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_CanonicalField_ForwardBatchWithJacobians)
     ->Arg(1)
     ->Arg(2)

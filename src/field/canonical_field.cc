@@ -260,6 +260,27 @@ void CanonicalField::ForwardBatch(const double* sdf_params, const double* color_
   });
 }
 
+void CanonicalField::ForwardSdfBatch(const double* sdf_params, FieldBatch* batch,
+                                     bool sdf_gradient) const {
+  CHECK(batch != nullptr);
+  const int n = batch->size();
+  pe_.EncodeBatch(batch->x, &batch->pe, sdf_gradient ? &batch->dpe_dx : nullptr);
+  if (!sdf_gradient) batch->dpe_dx.resize(0, 0);
+  Eigen::MatrixXd sdf_out;
+  sdf_mlp_.ForwardBatch(sdf_params, batch->pe, &batch->sdf_cache, &sdf_out);
+  batch->sdf = sdf_out.row(0).transpose();
+  batch->feature = sdf_out.bottomRows(options_.geometry_feature_dim);
+  batch->rgb.resize(3, 0);
+  batch->color_input.resize(0, 0);
+  batch->color_cache = MlpCache();
+  if (!sdf_gradient) return;
+  Eigen::MatrixXd d_out = Eigen::MatrixXd::Zero(sdf_mlp_.OutputDim(), n);
+  d_out.row(0).setOnes();
+  Eigen::MatrixXd d_pe;
+  sdf_mlp_.Backward(sdf_params, batch->sdf_cache, d_out, {0}, nullptr, &d_pe);
+  ChainEncodingTranspose(batch->dpe_dx, d_pe, &batch->dsdf_dx);
+}
+
 void CanonicalField::BackwardBatch(const double* sdf_params, const double* color_params,
                                    const FieldBatch& batch, const Eigen::VectorXd& d_sdf,
                                    const Eigen::Matrix3Xd& d_rgb,

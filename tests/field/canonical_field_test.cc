@@ -97,6 +97,23 @@ TEST(CanonicalField, ForwardBatchMatchesTemplatedWithInputJacobians) {
   }
 }
 
+TEST(CanonicalField, ForwardSdfBatchMatchesForwardBatch) {
+  Fixture f(SmallOptions());
+  f.field.ForwardBatch(f.sdf.data(), f.color.data(), &f.batch, true);
+  FieldBatch b;
+  b.x = f.batch.x;
+  f.field.ForwardSdfBatch(f.sdf.data(), &b, true);
+  EXPECT_LT((b.sdf - f.batch.sdf).cwiseAbs().maxCoeff(), kValueTol);
+  EXPECT_LT((b.feature - f.batch.feature).cwiseAbs().maxCoeff(), kValueTol);
+  // Reverse-mode gradient vs forward-tangent gradient.
+  EXPECT_LT(ScaledError(b.dsdf_dx, f.batch.dsdf_dx), kGradTol);
+  Eigen::Matrix3Xd c = Eigen::Matrix3Xd::Ones(3, b.size());
+  Eigen::MatrixXd dp1, dp2;
+  f.field.SdfGradientBackward(f.sdf.data(), b, c, kGroups, &dp1, nullptr);
+  f.field.SdfGradientBackward(f.sdf.data(), f.batch, c, kGroups, &dp2, nullptr);
+  EXPECT_LT(ScaledError(dp1, dp2), kValueTol);
+}
+
 TEST(CanonicalField, BackwardBatchPerGroupMatchesFullJetReference) {
   for (const bool view : {true, false}) {
     CanonicalFieldOptions o = SmallOptions();

@@ -169,6 +169,12 @@ class CanonicalField {
   void ForwardBatch(const double* sdf_params, const double* color_params, FieldBatch* batch,
                     bool input_jacobians) const;
 
+  // SDF MLP only (e.g. eikonal samples, mesh extraction): fills batch->sdf,
+  // batch->feature and, with sdf_gradient, batch->dsdf_dx (one reverse pass).
+  // Leaves rgb and the colour caches empty; only SdfGradientBackward may
+  // follow it (BackwardBatch needs the colour caches of ForwardBatch).
+  void ForwardSdfBatch(const double* sdf_params, FieldBatch* batch, bool sdf_gradient) const;
+
   // Per-group weight gradients of sum_j d_sdf_j sdf_j + d_rgb_j . rgb_j
   // (groups as in Mlp::Backward). d_sdf_params: P_sdf x G, d_color_params:
   // P_col x G (either may be null). d_x (may be null): 3 x n, gradient wrt
