@@ -60,4 +60,25 @@ Pose Model::RootPose(int v, int t) const {
   return out;
 }
 
+void Model::ForEachBlock(
+    const std::function<void(const std::string& name, double* data, int size)>& fn) {
+  fn("sdf", sdf_.data(), sdf_size());
+  fn("color", color_.data(), color_size());
+  fn("embedding", embedding_.data(), embedding_size());
+  fn("log_beta", &log_beta_, 1);
+  fn("bones", bones_.data(), bones_size());
+  for (size_t v = 0; v < videos_.size(); ++v) {
+    const std::string video = "video" + std::to_string(v);
+    fn(video + "/intrinsics", videos_[v].intrinsics.data(), 4);
+    fn(video + "/appearance", videos_[v].appearance.data(), appearance_size());
+    for (size_t t = 0; t < videos_[v].frames.size(); ++t) {
+      FrameParameters& f = videos_[v].frames[t];
+      const std::string frame = video + "/frame" + std::to_string(t);
+      fn(frame + "/root_delta", f.root_delta.data(), kPoseSize);
+      fn(frame + "/root_init", f.root_init.data(), kPoseSize);
+      fn(frame + "/bones_t", f.bones_t.data(), static_cast<int>(f.bones_t.size()));
+    }
+  }
+}
+
 }  // namespace banmo

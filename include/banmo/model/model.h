@@ -15,6 +15,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -85,6 +86,12 @@ class Model {
 
   // camera_from_root G^t = dG^t * G0^t.
   Pose RootPose(int v, int t) const;
+
+  // Visits every block (parameters and the G0^t data) in a fixed order:
+  // sdf, color, embedding, log_beta, bones, then per video: intrinsics,
+  // appearance, and per frame: root_delta, root_init, bones_t. Names are
+  // e.g. "sdf", "video3/intrinsics", "video3/frame12/root_delta".
+  void ForEachBlock(const std::function<void(const std::string& name, double* data, int size)>& fn);
 
  private:
   ModelOptions options_;
