@@ -371,12 +371,23 @@ void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOpt
     for (const std::exception_ptr& e : errors) {
       if (e) std::rethrow_exception(e);
     }
-    // Flush everything written into the temporary folder in one call.
-    const int fd = ::open(temp.c_str(), O_RDONLY | O_DIRECTORY);
-    if (fd >= 0) {
-      ::syncfs(fd);
-      ::close(fd);
+    // Flush our files and folders (fsync each: unlike syncfs this does not
+    // wait for other programs' dirty data on the same file system).
+    std::vector<std::string> to_sync;
+    for (auto it = fs::recursive_directory_iterator(temp, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      to_sync.push_back(it->path().string());
     }
+    to_sync.push_back(temp);
+    ParallelFor(static_cast<int>(to_sync.size()), [&](int begin, int end) {
+      for (int i = begin; i < end; ++i) {
+        const int fd = ::open(to_sync[i].c_str(), O_RDONLY);
+        if (fd >= 0) {
+          ::fsync(fd);
+          ::close(fd);
+        }
+      }
+    });
     // Put it in place. An existing (empty or, with overwrite, old) folder is
     // moved aside first and removed only after the rename succeeded.
     std::string old;
@@ -395,6 +406,13 @@ void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOpt
                       ": could not rename the written dataset into place: ", reason);
     }
     if (!old.empty()) fs::remove_all(old, ec);
+    const std::string parent =
+        target.parent_path().empty() ? std::string(".") : target.parent_path().string();
+    const int parent_fd = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY);
+    if (parent_fd >= 0) {
+      ::fsync(parent_fd);  // make the rename durable
+      ::close(parent_fd);
+    }
   } catch (...) {
     fs::remove_all(temp, ec);
     throw;
