@@ -186,43 +186,74 @@ struct GradientTerm {
 
 // d_params(:, g) = sum over terms of layer l: delta[:, g] input[:, g]^T (into
 // W_l) and sum over the group of bias_delta (into b_l).
+// Writes the gradient of samples [b, b + m) into column (NumParameters
+// doubles): per layer, dW = sum over terms of delta * input^T, db = sum of
+// bias_delta.
+static void GroupGradient(const Mlp& mlp, const std::vector<std::vector<GradientTerm>>& terms,
+                          const std::vector<const Eigen::MatrixXd*>& bias_delta, int b, int m,
+                          double* column) {
+  for (int l = 0; l < mlp.NumLinearLayers(); ++l) {
+    const int in = mlp.LayerInputDim(l), out = mlp.LayerOutputDim(l);
+    WeightMap dw(column + mlp.WeightOffset(l), out, in);
+    Eigen::Map<Eigen::VectorXd> db(column + mlp.BiasOffset(l), out);
+    if (m == 0) {
+      dw.setZero();
+      db.setZero();
+      continue;
+    }
+    bool first = true;
+    for (const GradientTerm& term : terms[l]) {
+      if (first) {
+        dw.noalias() = term.delta->middleCols(b, m) * term.input->middleCols(b, m).transpose();
+        first = false;
+      } else {
+        dw.noalias() += term.delta->middleCols(b, m) * term.input->middleCols(b, m).transpose();
+      }
+    }
+    if (bias_delta[l] != nullptr) {
+      db = bias_delta[l]->middleCols(b, m).rowwise().sum();
+    } else {
+      db.setZero();
+    }
+  }
+}
+
+// d_params(:, g) = gradient of group g (see GroupGradient). Parallel over
+// groups; when there are fewer groups than threads (e.g. one group = the
+// whole batch, the J^T r gradient), each group is split into per-thread
+// partial sums added in a fixed order (deterministic for a fixed thread
+// count).
 static void PerGroupGradients(const Mlp& mlp, const std::vector<std::vector<GradientTerm>>& terms,
                               const std::vector<const Eigen::MatrixXd*>& bias_delta,
                               const std::vector<int>& group_begin, Eigen::MatrixXd* d_params) {
   const int G = static_cast<int>(group_begin.size()) - 1;
-  d_params->resize(mlp.NumParameters(), G);
-  const int L = mlp.NumLinearLayers();
-  ParallelFor(G, [&](int g_begin, int g_end) {
-    for (int g = g_begin; g < g_end; ++g) {
-      const int b = group_begin[g];
-      const int m = group_begin[g + 1] - b;
-      double* column = d_params->col(g).data();
-      for (int l = 0; l < L; ++l) {
-        const int in = mlp.LayerInputDim(l), out = mlp.LayerOutputDim(l);
-        WeightMap dw(column + mlp.WeightOffset(l), out, in);
-        Eigen::Map<Eigen::VectorXd> db(column + mlp.BiasOffset(l), out);
-        if (m == 0) {
-          dw.setZero();
-          db.setZero();
-          continue;
-        }
-        bool first = true;
-        for (const GradientTerm& term : terms[l]) {
-          if (first) {
-            dw.noalias() = term.delta->middleCols(b, m) * term.input->middleCols(b, m).transpose();
-            first = false;
-          } else {
-            dw.noalias() += term.delta->middleCols(b, m) * term.input->middleCols(b, m).transpose();
-          }
-        }
-        if (bias_delta[l] != nullptr) {
-          db = bias_delta[l]->middleCols(b, m).rowwise().sum();
-        } else {
-          db.setZero();
-        }
+  const int P = mlp.NumParameters();
+  d_params->resize(P, G);
+  const int threads = NumThreads();
+  if (G >= threads) {
+    ParallelFor(G, [&](int g_begin, int g_end) {
+      for (int g = g_begin; g < g_end; ++g) {
+        GroupGradient(mlp, terms, bias_delta, group_begin[g], group_begin[g + 1] - group_begin[g],
+                      d_params->col(g).data());
       }
-    }
-  });
+    });
+    return;
+  }
+  for (int g = 0; g < G; ++g) {
+    const int b = group_begin[g];
+    const int m = group_begin[g + 1] - b;
+    const int chunk = std::max(1, (m + threads - 1) / threads);
+    const int num_chunks = std::max(1, (m + chunk - 1) / chunk);
+    Eigen::MatrixXd partial(P, num_chunks);
+    ParallelFor(num_chunks, [&](int c_begin, int c_end) {
+      for (int c = c_begin; c < c_end; ++c) {
+        const int cb = std::min(m, c * chunk);
+        GroupGradient(mlp, terms, bias_delta, b + cb, std::min(m, cb + chunk) - cb,
+                      partial.col(c).data());
+      }
+    });
+    d_params->col(g) = partial.rowwise().sum();
+  }
 }
 
 void Mlp::Backward(const double* params, const MlpCache& cache, const Eigen::MatrixXd& d_outputs,

@@ -7,6 +7,7 @@
 #include <memory>
 #include <random>
 
+#include "banmo/util/parallel.h"
 #include "field_test_util.h"
 
 namespace banmo {
@@ -133,6 +134,15 @@ TEST_P(MlpTest, BackwardPerGroupMatchesFullJetReference) {
   }
   EXPECT_LT(ScaledError(dp, ref), kGradTol);
   EXPECT_EQ(dp.col(1).norm(), 0.0);  // the empty group
+  // One group over all grouped samples (split across threads internally)
+  // equals the sum of the per-group columns.
+  for (const int threads : {1, 2, 3}) {
+    SetNumThreads(threads);
+    Eigen::MatrixXd whole;
+    mlp.Backward(p.data(), cache, dy, {0, kGroups.back()}, &whole, nullptr);
+    EXPECT_LT(ScaledError(whole.col(0), ref.rowwise().sum()), kGradTol) << threads;
+  }
+  SetNumThreads(2);
   for (int j = 0; j < kN; ++j) {
     const Eigen::MatrixXd jac =
         JetJacobian<5>([&](const auto* xj, auto* out) { mlp.Forward(p.data(), xj, out); },
