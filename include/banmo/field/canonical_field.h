@@ -75,7 +75,7 @@ struct CanonicalFieldOptions {
 struct FieldBatch {
   // Inputs.
   Eigen::Matrix3Xd x;          // canonical points (3 x n)
-  Eigen::Matrix3Xd view_dir;   // unit view directions, canonical frame (3 x n)
+  Eigen::Matrix3Xd view_dir;   // unit view directions, canonical frame (3 x n), used as given
   Eigen::MatrixXd appearance;  // appearance codes (A x n)
 
   // Outputs.
@@ -86,7 +86,7 @@ struct FieldBatch {
   // Input Jacobians (filled when ForwardBatch(..., input_jacobians = true)).
   Eigen::Matrix3Xd dsdf_dx;          // SDF gradient, column j = grad_x sdf(x_j)
   Eigen::MatrixXd drgb_dx;           // 3 x 3n, block j = d rgb_j / d x_j
-  Eigen::MatrixXd drgb_dview;        // 3 x 3n, block j = d rgb_j / d view_dir_j
+  Eigen::MatrixXd drgb_dview;        // 3 x 3n, block j = d rgb_j / d view_dir_j (0 if unused)
   Eigen::MatrixXd drgb_dappearance;  // 3 x (A n), block j = d rgb_j / d appearance_j
 
   // Caches (internal to CanonicalField).

@@ -17,6 +17,16 @@
 //
 // Parameter block layout (NumParameters() doubles): for each linear layer
 // l = 1 .. L in order, W_l (out_l x in_l, row-major) followed by b_l (out_l).
+//
+// Threads: the batched passes split samples (or groups) over
+// util/parallel.h ParallelFor; every output entry is written by one chunk, so
+// results are deterministic for a fixed NumThreads() (a different thread
+// count may change the last bits through GEMM blocking). All methods are
+// const and safe to call concurrently on distinct outputs.
+//
+// Costs (tests/benchmarks: benchmarks/field/README.md): at width 64 and
+// 32768 samples on 2 cores, ForwardBatch ~59 ms, Backward with 1024 per-ray
+// gradients ~48 ms per call.
 #pragma once
 
 #include <Eigen/Core>
