@@ -1,0 +1,668 @@
+// YAML <-> SolverConfig. Every struct lists its fields once (VisitFields);
+// the reader, the key collector and the writer all walk those lists, so a
+// field is read and written under the same key by construction.
+#include "banmo/optim/config.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <locale>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+
+namespace banmo {
+namespace {
+
+// ---- Field lists (keys = field names). ----
+
+template <class V>
+void VisitFields(V& v, PositionalEncodingOptions& o) {
+  v("num_bands", o.num_bands);
+  v("include_input", o.include_input);
+  v("base_frequency", o.base_frequency);
+}
+
+template <class V>
+void VisitFields(V& v, CanonicalFieldOptions& o) {
+  v("position_encoding", o.position_encoding);
+  v("sdf_width", o.sdf_width);
+  v("sdf_layers", o.sdf_layers);
+  v("geometry_feature_dim", o.geometry_feature_dim);
+  v("color_width", o.color_width);
+  v("color_layers", o.color_layers);
+  v("use_view_direction", o.use_view_direction);
+  v("view_encoding", o.view_encoding);
+  v("appearance_code_dim", o.appearance_code_dim);
+  v("embedding_width", o.embedding_width);
+  v("embedding_layers", o.embedding_layers);
+  v("activation", o.activation);
+  v("softplus_beta", o.softplus_beta);
+  v("init_sphere_radius", o.init_sphere_radius);
+}
+
+template <class V>
+void VisitFields(V& v, ModelOptions& o) {
+  v("field", o.field);
+  v("num_bones", o.num_bones);
+  v("init_bone_scale", o.init_bone_scale);
+  v("init_beta", o.init_beta);
+  v("seed", o.seed);
+}
+
+template <class V>
+void VisitFields(V& v, RobustLossConfig& o) {
+  v("type", o.type);
+  v("scale", o.scale);
+}
+
+template <class V>
+void VisitFields(V& v, LossConfig& o) {
+  v("weight", o.weight);
+  v("robust", o.robust);
+}
+
+template <class V>
+void VisitFields(V& v, LossesConfig& o) {
+  v("rgb", o.rgb);
+  v("silhouette", o.silhouette);
+  v("flow", o.flow);
+  v("feature_match", o.feature_match);
+  v("cycle_2d", o.cycle_2d);
+  v("cycle_3d", o.cycle_3d);
+  v("eikonal", o.eikonal);
+  v("bone_inside", o.bone_inside);
+  v("pose_smoothness", o.pose_smoothness);
+  v("bone_inside_margin", o.bone_inside_margin);
+}
+
+template <class V>
+void VisitFields(V& v, AdamConfig& o) {
+  v("lr", o.lr);
+  v("beta1", o.beta1);
+  v("beta2", o.beta2);
+  v("epsilon", o.epsilon);
+  v("weight_decay", o.weight_decay);
+  v("schedule", o.schedule);
+  v("warmup_fraction", o.warmup_fraction);
+  v("final_lr_fraction", o.final_lr_fraction);
+  v("pose_lr_scale", o.pose_lr_scale);
+  v("bone_lr_scale", o.bone_lr_scale);
+}
+
+template <class V>
+void VisitFields(V& v, LmConfig& o) {
+  v("max_cg_iterations", o.max_cg_iterations);
+  v("initial_radius", o.initial_radius);
+  v("max_radius", o.max_radius);
+  v("linear_solver", o.linear_solver);
+  v("iterations_per_batch", o.iterations_per_batch);
+}
+
+template <class V>
+void VisitFields(V& v, SamplingConfig& o) {
+  v("foreground_fraction", o.foreground_fraction);
+  v("active_fraction", o.active_fraction);
+  v("importance_depth", o.importance_depth);
+  v("near_far_margin", o.near_far_margin);
+  v("flow_gaps", o.flow_gaps);
+  v("eikonal_points", o.eikonal_points);
+  v("match_grid_points", o.match_grid_points);
+  v("match_top_k", o.match_top_k);
+}
+
+template <class V>
+void VisitFields(V& v, ScheduleConfig& o) {
+  v("bone_reinit_at", o.bone_reinit_at);
+  v("bounds_refresh_every", o.bounds_refresh_every);
+  v("anneal_end_fraction", o.anneal_end_fraction);
+  v("delta_skinning_from", o.delta_skinning_from);
+}
+
+template <class V>
+void VisitFields(V& v, StageConfig& o) {
+  v("name", o.name);
+  v("iterations", o.iterations);
+  v("step_rule", o.step_rule);
+  v("batch_rays", o.batch_rays);
+  v("samples_per_ray", o.samples_per_ray);
+  v("losses", o.losses);
+  v("constant", o.constant);
+  v("adam", o.adam);
+  v("lm", o.lm);
+  v("sampling", o.sampling);
+  v("schedule", o.schedule);
+  v("checkpoint_every", o.checkpoint_every);
+  v("log_every", o.log_every);
+}
+
+// ---- Reading. ----
+
+std::string Join(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+std::string LineOf(const YAML::Node& node) {
+  const YAML::Mark mark = node.Mark();
+  if (mark.is_null()) return "";
+  return " (line " + std::to_string(mark.line + 1) + ")";
+}
+
+std::string Describe(const YAML::Node& node) {
+  if (!node.IsDefined() || node.IsNull()) return "nothing";
+  if (node.IsMap()) return "a map";
+  if (node.IsSequence()) return "a list";
+  return "'" + node.Scalar() + "'";
+}
+
+[[noreturn]] void TypeError(const std::string& source, const std::string& path,
+                            const YAML::Node& node, const std::string& expected) {
+  ThrowInputError(source, ": key '", path, "'", LineOf(node), ": expected ", expected, ", got ",
+                  Describe(node));
+}
+
+// Strict integer: optional sign and decimal digits, in [lo, hi].
+long long ParseInteger(const std::string& source, const std::string& path, const YAML::Node& node,
+                       long long lo, long long hi, const std::string& expected) {
+  if (!node.IsScalar()) TypeError(source, path, node, expected);
+  const std::string& s = node.Scalar();
+  size_t i = (!s.empty() && (s[0] == '+' || s[0] == '-')) ? 1 : 0;
+  if (i == s.size()) TypeError(source, path, node, expected);
+  for (size_t j = i; j < s.size(); ++j) {
+    if (s[j] < '0' || s[j] > '9') TypeError(source, path, node, expected);
+  }
+  errno = 0;
+  char* end = nullptr;
+  const long long value = std::strtoll(s.c_str(), &end, 10);
+  if (errno == ERANGE || value < lo || value > hi) TypeError(source, path, node, expected);
+  return value;
+}
+
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               int* value) {
+  *value = static_cast<int>(ParseInteger(source, path, node, std::numeric_limits<int>::min(),
+                                         std::numeric_limits<int>::max(), "an integer"));
+}
+
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               uint32_t* value) {
+  *value = static_cast<uint32_t>(ParseInteger(
+      source, path, node, 0, std::numeric_limits<uint32_t>::max(), "an integer in 0..4294967295"));
+}
+
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               double* value) {
+  const char* expected = "a finite number";
+  if (!node.IsScalar()) TypeError(source, path, node, expected);
+  std::istringstream in(node.Scalar());
+  in.imbue(std::locale::classic());
+  double v = 0.0;
+  in >> v;
+  if (in.fail() || !(in >> std::ws).eof() || !std::isfinite(v)) {
+    TypeError(source, path, node, expected);
+  }
+  *value = v;
+}
+
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               bool* value) {
+  const std::string& s = node.IsScalar() ? node.Scalar() : std::string();
+  if (s == "true" || s == "True" || s == "TRUE") {
+    *value = true;
+  } else if (s == "false" || s == "False" || s == "FALSE") {
+    *value = false;
+  } else {
+    TypeError(source, path, node, "true or false");
+  }
+}
+
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               std::string* value) {
+  if (!node.IsScalar()) TypeError(source, path, node, "a string");
+  *value = node.Scalar();
+}
+
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               Activation* value) {
+  const std::string& s = node.IsScalar() ? node.Scalar() : std::string();
+  if (s == "softplus") {
+    *value = Activation::kSoftplus;
+  } else if (s == "relu") {
+    *value = Activation::kRelu;
+  } else {
+    TypeError(source, path, node, "softplus or relu");
+  }
+}
+
+// A list replaces the default list entirely; an empty value (`key:`) is the
+// empty list.
+template <class T>
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               std::vector<T>* value) {
+  if (node.IsNull()) {
+    value->clear();
+    return;
+  }
+  if (!node.IsSequence()) TypeError(source, path, node, "a list");
+  std::vector<T> out(node.size());
+  for (size_t i = 0; i < node.size(); ++i) {
+    ReadValue(source, path + "[" + std::to_string(i) + "]", node[i], &out[i]);
+  }
+  *value = std::move(out);
+}
+
+// Collects the keys of a struct.
+struct KeyCollector {
+  std::set<std::string> keys;
+  template <class T>
+  void operator()(const char* key, T&) {
+    keys.insert(key);
+  }
+};
+
+template <class S>
+void ReadStruct(const std::string& source, const std::string& path, const YAML::Node& node,
+                S* value);
+
+// Reads the present keys of one map into a struct's fields.
+class FieldReader {
+ public:
+  FieldReader(const std::string& source, const std::string& path, const YAML::Node& node)
+      : source_(source), path_(path), node_(node) {}
+
+  template <class T>
+  void operator()(const char* key, T& value) {
+    const YAML::Node child = node_[key];
+    if (!child.IsDefined()) return;
+    Read(Join(path_, key), child, &value);
+  }
+
+ private:
+  void Read(const std::string& path, const YAML::Node& node, int* v) {
+    ReadValue(source_, path, node, v);
+  }
+  void Read(const std::string& path, const YAML::Node& node, uint32_t* v) {
+    ReadValue(source_, path, node, v);
+  }
+  void Read(const std::string& path, const YAML::Node& node, double* v) {
+    ReadValue(source_, path, node, v);
+  }
+  void Read(const std::string& path, const YAML::Node& node, bool* v) {
+    ReadValue(source_, path, node, v);
+  }
+  void Read(const std::string& path, const YAML::Node& node, std::string* v) {
+    ReadValue(source_, path, node, v);
+  }
+  void Read(const std::string& path, const YAML::Node& node, Activation* v) {
+    ReadValue(source_, path, node, v);
+  }
+  template <class T>
+  void Read(const std::string& path, const YAML::Node& node, std::vector<T>* v) {
+    ReadValue(source_, path, node, v);
+  }
+  template <class S>
+  void Read(const std::string& path, const YAML::Node& node, S* v) {
+    ReadStruct(source_, path, node, v);
+  }
+
+  const std::string& source_;
+  const std::string& path_;
+  const YAML::Node node_;
+};
+
+// Unknown or repeated keys of a map are errors naming the full key path.
+void CheckKeys(const std::string& source, const std::string& path, const YAML::Node& node,
+               const std::set<std::string>& known) {
+  std::set<std::string> seen;
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const YAML::Node key = it->first;
+    if (!key.IsScalar()) {
+      ThrowInputError(source, ": a key in '", path.empty() ? "(top level)" : path, "'", LineOf(key),
+                      " is not a plain name");
+    }
+    const std::string name = key.Scalar();
+    if (!known.count(name)) {
+      ThrowInputError(source, ": unknown key '", Join(path, name), "'", LineOf(key));
+    }
+    if (!seen.insert(name).second) {
+      ThrowInputError(source, ": duplicate key '", Join(path, name), "'", LineOf(key));
+    }
+  }
+}
+
+// A map over a struct: keys present override the struct's current values
+// (its defaults, or the `defaults:` stage); an empty value keeps them.
+template <class S>
+void ReadStruct(const std::string& source, const std::string& path, const YAML::Node& node,
+                S* value) {
+  if (node.IsNull()) return;
+  if (!node.IsMap()) TypeError(source, path, node, "a map");
+  KeyCollector collector;
+  VisitFields(collector, *value);
+  CheckKeys(source, path, node, collector.keys);
+  FieldReader reader(source, path, node);
+  VisitFields(reader, *value);
+}
+
+// ---- Writing. ----
+
+// Shortest decimal that reads back to the same double.
+std::string FormatDouble(double v) {
+  char buf[64];
+  for (int precision = 15; precision <= 17; ++precision) {
+    std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
+    if (std::strtod(buf, nullptr) == v) break;
+  }
+  return buf;
+}
+
+class FieldWriter {
+ public:
+  explicit FieldWriter(YAML::Emitter* out) : out_(*out) {}
+
+  template <class T>
+  void operator()(const char* key, T& value) {
+    out_ << YAML::Key << key << YAML::Value;
+    Write(value);
+  }
+
+  template <class S>
+  void WriteStruct(S& value) {
+    out_ << YAML::BeginMap;
+    VisitFields(*this, value);
+    out_ << YAML::EndMap;
+  }
+
+ private:
+  void Write(int v) { out_ << v; }
+  void Write(uint32_t v) { out_ << v; }
+  void Write(double v) { out_ << FormatDouble(v); }
+  void Write(bool v) { out_ << (v ? "true" : "false"); }
+  void Write(std::string& v) {
+    // Strings YAML would read as null are quoted; the reader accepts any
+    // other scalar as a string.
+    if (v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL") {
+      out_ << YAML::DoubleQuoted << v;
+    } else {
+      out_ << v;
+    }
+  }
+  void Write(Activation v) { out_ << (v == Activation::kRelu ? "relu" : "softplus"); }
+  template <class T>
+  void Write(std::vector<T>& v) {
+    out_ << YAML::Flow << YAML::BeginSeq;
+    for (auto& x : v) {
+      T copy = x;
+      Write(copy);
+    }
+    out_ << YAML::EndSeq;
+  }
+  template <class S>
+  void Write(S& v) {
+    WriteStruct(v);
+  }
+
+  YAML::Emitter& out_;
+};
+
+// ---- Checking. ----
+
+class Checker {
+ public:
+  explicit Checker(const std::string& source) : source_(source) {}
+
+  template <class... Args>
+  [[noreturn]] void Fail(const std::string& key, Args&&... args) const {
+    ThrowInputError(source_, ": ", key, ": ", std::forward<Args>(args)...);
+  }
+  void Positive(const std::string& key, double v) const {
+    if (!(v > 0) || !std::isfinite(v)) Fail(key, "expected a finite number > 0, got ", v);
+  }
+  void Positive(const std::string& key, int v) const {
+    if (v <= 0) Fail(key, "expected an integer > 0, got ", v);
+  }
+  void NonNegative(const std::string& key, double v) const {
+    if (!(v >= 0) || !std::isfinite(v)) Fail(key, "expected a finite number >= 0, got ", v);
+  }
+  void NonNegative(const std::string& key, int v) const {
+    if (v < 0) Fail(key, "expected an integer >= 0, got ", v);
+  }
+  void Fraction(const std::string& key, double v) const {
+    if (!(v >= 0 && v <= 1)) Fail(key, "expected a fraction in [0, 1], got ", v);
+  }
+  void OneOf(const std::string& key, const std::string& v,
+             const std::vector<std::string>& allowed) const {
+    for (const std::string& a : allowed) {
+      if (v == a) return;
+    }
+    std::string list;
+    for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
+    Fail(key, "expected one of {", list, "}, got '", v, "'");
+  }
+
+ private:
+  const std::string& source_;
+};
+
+const std::vector<std::string>& ConstantGroups() {
+  static const std::vector<std::string> groups = {"sdf",      "color",      "embedding",
+                                                  "log_beta", "appearance", "root",
+                                                  "bones",    "bones_t",    "intrinsics"};
+  return groups;
+}
+
+void CheckLoss(const Checker& c, const std::string& key, const LossConfig& loss) {
+  c.NonNegative(key + ".weight", loss.weight);
+  c.OneOf(key + ".robust.type", loss.robust.type,
+          {"none", "huber", "cauchy", "soft_l1", "arctan", "tolerant"});
+  c.Positive(key + ".robust.scale", loss.robust.scale);
+}
+
+void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
+  if (s.name.empty()) c.Fail(p + ".name", "expected a non-empty name");
+  c.Positive(p + ".iterations", s.iterations);
+  c.OneOf(p + ".step_rule", s.step_rule, {"adam", "lm", "alternate"});
+  c.Positive(p + ".batch_rays", s.batch_rays);
+  c.Positive(p + ".samples_per_ray", s.samples_per_ray);
+
+  const std::string l = p + ".losses";
+  const std::pair<const char*, const LossConfig*> losses[] = {
+      {"rgb", &s.losses.rgb},
+      {"silhouette", &s.losses.silhouette},
+      {"flow", &s.losses.flow},
+      {"feature_match", &s.losses.feature_match},
+      {"cycle_2d", &s.losses.cycle_2d},
+      {"cycle_3d", &s.losses.cycle_3d},
+      {"eikonal", &s.losses.eikonal},
+      {"bone_inside", &s.losses.bone_inside},
+      {"pose_smoothness", &s.losses.pose_smoothness}};
+  bool any_loss = false;
+  for (const auto& [name, loss] : losses) {
+    CheckLoss(c, l + "." + name, *loss);
+    any_loss = any_loss || loss->weight > 0;
+  }
+  if (!any_loss) c.Fail(l, "every loss weight is 0 (nothing to minimise)");
+  c.NonNegative(l + ".bone_inside_margin", s.losses.bone_inside_margin);
+
+  std::set<std::string> constant;
+  for (size_t i = 0; i < s.constant.size(); ++i) {
+    const std::string key = p + ".constant[" + std::to_string(i) + "]";
+    c.OneOf(key, s.constant[i], ConstantGroups());
+    if (!constant.insert(s.constant[i]).second) {
+      c.Fail(key, "group '", s.constant[i], "' listed twice");
+    }
+  }
+  if (constant.size() == ConstantGroups().size()) {
+    c.Fail(p + ".constant", "every parameter group is constant (nothing to optimise)");
+  }
+
+  const std::string a = p + ".adam";
+  c.Positive(a + ".lr", s.adam.lr);
+  if (!(s.adam.beta1 >= 0 && s.adam.beta1 < 1)) {
+    c.Fail(a + ".beta1", "expected a number in [0, 1), got ", s.adam.beta1);
+  }
+  if (!(s.adam.beta2 >= 0 && s.adam.beta2 < 1)) {
+    c.Fail(a + ".beta2", "expected a number in [0, 1), got ", s.adam.beta2);
+  }
+  c.Positive(a + ".epsilon", s.adam.epsilon);
+  c.NonNegative(a + ".weight_decay", s.adam.weight_decay);
+  c.OneOf(a + ".schedule", s.adam.schedule, {"onecycle", "constant"});
+  c.Fraction(a + ".warmup_fraction", s.adam.warmup_fraction);
+  c.Fraction(a + ".final_lr_fraction", s.adam.final_lr_fraction);
+  c.Positive(a + ".pose_lr_scale", s.adam.pose_lr_scale);
+  c.Positive(a + ".bone_lr_scale", s.adam.bone_lr_scale);
+
+  const std::string m = p + ".lm";
+  c.Positive(m + ".max_cg_iterations", s.lm.max_cg_iterations);
+  c.Positive(m + ".initial_radius", s.lm.initial_radius);
+  c.Positive(m + ".max_radius", s.lm.max_radius);
+  if (s.lm.max_radius < s.lm.initial_radius) {
+    c.Fail(m + ".max_radius", "expected >= lm.initial_radius (", s.lm.initial_radius, "), got ",
+           s.lm.max_radius);
+  }
+  c.OneOf(m + ".linear_solver", s.lm.linear_solver, {"cgnr", "iterative_schur"});
+  c.Positive(m + ".iterations_per_batch", s.lm.iterations_per_batch);
+
+  const std::string g = p + ".sampling";
+  c.Fraction(g + ".foreground_fraction", s.sampling.foreground_fraction);
+  c.Fraction(g + ".active_fraction", s.sampling.active_fraction);
+  c.NonNegative(g + ".near_far_margin", s.sampling.near_far_margin);
+  if (s.losses.flow.weight > 0 && s.sampling.flow_gaps.empty()) {
+    c.Fail(g + ".flow_gaps", "expected at least one gap when losses.flow.weight > 0");
+  }
+  for (size_t i = 0; i < s.sampling.flow_gaps.size(); ++i) {
+    c.Positive(g + ".flow_gaps[" + std::to_string(i) + "]", s.sampling.flow_gaps[i]);
+  }
+  c.Positive(g + ".eikonal_points", s.sampling.eikonal_points);
+  c.Positive(g + ".match_grid_points", s.sampling.match_grid_points);
+  c.Positive(g + ".match_top_k", s.sampling.match_top_k);
+  if (s.sampling.match_top_k > s.sampling.match_grid_points) {
+    c.Fail(g + ".match_top_k", "expected <= sampling.match_grid_points (",
+           s.sampling.match_grid_points, "), got ", s.sampling.match_top_k);
+  }
+
+  const std::string h = p + ".schedule";
+  for (size_t i = 0; i < s.schedule.bone_reinit_at.size(); ++i) {
+    const std::string key = h + ".bone_reinit_at[" + std::to_string(i) + "]";
+    c.Fraction(key, s.schedule.bone_reinit_at[i]);
+    if (i > 0 && !(s.schedule.bone_reinit_at[i] > s.schedule.bone_reinit_at[i - 1])) {
+      c.Fail(key, "expected increasing fractions, got ", s.schedule.bone_reinit_at[i], " after ",
+             s.schedule.bone_reinit_at[i - 1]);
+    }
+  }
+  c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
+  c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
+  c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
+
+  c.NonNegative(p + ".checkpoint_every", s.checkpoint_every);
+  c.NonNegative(p + ".log_every", s.log_every);
+}
+
+}  // namespace
+
+SolverConfig LoadSolverConfig(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) ThrowInputError(path, ": cannot open the config file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) ThrowInputError(path, ": cannot read the config file");
+  return ParseSolverConfig(text.str(), path);
+}
+
+SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(source, ": invalid YAML (line ", e.mark.line + 1, "): ", e.msg);
+  }
+  if (!root.IsDefined() || root.IsNull()) {
+    ThrowInputError(source, ": empty config (expected a map with a 'stages' list)");
+  }
+  if (!root.IsMap()) TypeError(source, "(top level)", root, "a map");
+  CheckKeys(source, "", root, {"model", "defaults", "stages", "seed", "threads"});
+
+  SolverConfig config;
+  if (root["model"]) ReadStruct(source, "model", root["model"], &config.model);
+  if (root["seed"]) ReadValue(source, "seed", root["seed"], &config.seed);
+  if (root["threads"]) ReadValue(source, "threads", root["threads"], &config.threads);
+
+  StageConfig base;
+  if (root["defaults"]) ReadStruct(source, "defaults", root["defaults"], &base);
+
+  const YAML::Node stages = root["stages"];
+  if (!stages || stages.IsNull()) {
+    ThrowInputError(source, ": key 'stages': expected a non-empty list of stages");
+  }
+  if (!stages.IsSequence()) TypeError(source, "stages", stages, "a list of stages");
+  for (size_t i = 0; i < stages.size(); ++i) {
+    StageConfig stage = base;
+    ReadStruct(source, "stages[" + std::to_string(i) + "]", stages[i], &stage);
+    config.stages.push_back(std::move(stage));
+  }
+  CheckSolverConfig(config, source);
+  return config;
+}
+
+std::string SolverConfigToYaml(const SolverConfig& config) {
+  SolverConfig c = config;  // the field lists take non-const references
+  YAML::Emitter out;
+  out << YAML::Comment("banmo solver config, resolved (every key; see docs/config.md)");
+  out << YAML::BeginMap;
+  FieldWriter writer(&out);
+  out << YAML::Key << "model" << YAML::Value;
+  writer.WriteStruct(c.model);
+  out << YAML::Key << "seed" << YAML::Value << c.seed;
+  out << YAML::Key << "threads" << YAML::Value << c.threads;
+  out << YAML::Key << "stages" << YAML::Value << YAML::BeginSeq;
+  for (StageConfig& stage : c.stages) writer.WriteStruct(stage);
+  out << YAML::EndSeq;
+  out << YAML::EndMap;
+  CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
+  return std::string(out.c_str()) + "\n";
+}
+
+void CheckSolverConfig(const SolverConfig& config, const std::string& source) {
+  const Checker c(source);
+  const ModelOptions& m = config.model;
+  std::string error;
+  if (!m.field.Check(&error)) {
+    // The field's messages start with the field's name where there is one
+    // ("sdf_width must be > 0", "position_encoding.num_bands ...").
+    KeyCollector keys;
+    CanonicalFieldOptions copy = m.field;
+    VisitFields(keys, copy);
+    const std::string first = error.substr(0, error.find_first_of(". "));
+    if (keys.keys.count(first)) {
+      ThrowInputError(source, ": model.field.", error);
+    }
+    ThrowInputError(source, ": model.field: ", error);
+  }
+  if (m.num_bones < 0 || m.num_bones > 256) {
+    c.Fail("model.num_bones", "expected an integer in 0..256, got ", m.num_bones);
+  }
+  c.Positive("model.init_bone_scale", m.init_bone_scale);
+  c.Positive("model.init_beta", m.init_beta);
+  try {
+    m.Check();  // the model's own constraints (names the key)
+  } catch (const InputError& e) {
+    ThrowInputError(source, ": ", e.what());
+  }
+  c.NonNegative("threads", config.threads);
+  if (config.stages.empty()) c.Fail("stages", "expected a non-empty list of stages");
+  for (size_t i = 0; i < config.stages.size(); ++i) {
+    CheckStage(c, "stages[" + std::to_string(i) + "]", config.stages[i]);
+  }
+}
+
+}  // namespace banmo

@@ -1,0 +1,574 @@
+#include "banmo/optim/config.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "banmo/util/error.h"
+
+namespace banmo {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The message of the InputError thrown by fn ("" if none is thrown).
+std::string ErrorOf(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string ParseError(const std::string& yaml) {
+  return ErrorOf([&] { ParseSolverConfig(yaml, "test.yaml"); });
+}
+
+// The smallest valid config: one stage with the defaults.
+const char kMinimal[] = "stages:\n  - {}\n";
+
+TEST(SolverConfig, MinimalConfigTakesStructDefaults) {
+  const SolverConfig c = ParseSolverConfig(kMinimal, "test.yaml");
+  ASSERT_EQ(c.stages.size(), 1u);
+  const StageConfig d;
+  EXPECT_EQ(c.stages[0].name, d.name);
+  EXPECT_EQ(c.stages[0].iterations, d.iterations);
+  EXPECT_EQ(c.stages[0].constant, d.constant);
+  EXPECT_EQ(c.stages[0].sampling.flow_gaps, d.sampling.flow_gaps);
+  EXPECT_EQ(c.model.num_bones, ModelOptions().num_bones);
+  EXPECT_EQ(c.model.field.position_encoding.num_bands, PositionalEncodingOptions().num_bands);
+  EXPECT_EQ(c.seed, 0u);
+  // A null stage entry ("- ") is a stage with the defaults too.
+  EXPECT_EQ(ParseSolverConfig("stages:\n  -\n", "test.yaml").stages.size(), 1u);
+}
+
+TEST(SolverConfig, EveryProblemFileLoadsAndChecks) {
+  const fs::path dir = fs::path(BANMO_SOURCE_DIR) / "problems";
+  std::set<std::string> names;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    names.insert(entry.path().stem().string());
+    SolverConfig c;
+    EXPECT_NO_THROW(c = LoadSolverConfig(entry.path().string()));
+    EXPECT_FALSE(c.stages.empty());
+    EXPECT_NO_THROW(CheckSolverConfig(c, entry.path().string()));
+    // The resolved form reads back to the same config.
+    const std::string yaml = SolverConfigToYaml(c);
+    EXPECT_EQ(SolverConfigToYaml(ParseSolverConfig(yaml, "resolved")), yaml);
+  }
+  for (const char* required : {"default", "quadruped", "bird", "hand", "fox", "rigid", "tiny"}) {
+    EXPECT_TRUE(names.count(required)) << "problems/" << required << ".yaml missing";
+  }
+}
+
+TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
+  const SolverConfig c = LoadSolverConfig(std::string(BANMO_SOURCE_DIR) + "/problems/default.yaml");
+  ASSERT_EQ(c.stages.size(), 3u);
+  // Stage 2: 2D cycle (and a little silhouette), articulation only.
+  const StageConfig& s2 = c.stages[1];
+  EXPECT_GT(s2.losses.cycle_2d.weight, 0);
+  EXPECT_EQ(s2.losses.rgb.weight, 0);
+  EXPECT_EQ(s2.losses.flow.weight, 0);
+  EXPECT_EQ(s2.losses.feature_match.weight, 0);
+  EXPECT_LT(s2.losses.silhouette.weight, c.stages[0].losses.silhouette.weight);
+  const std::set<std::string> constant2(s2.constant.begin(), s2.constant.end());
+  EXPECT_EQ(constant2, (std::set<std::string>{"sdf", "color", "embedding", "log_beta", "appearance",
+                                              "root", "intrinsics"}));
+  // Stage 3: importance depth + active sampling, root poses fixed.
+  const StageConfig& s3 = c.stages[2];
+  EXPECT_TRUE(s3.sampling.importance_depth);
+  EXPECT_EQ(s3.sampling.active_fraction, 0.25);
+  EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), "root"), s3.constant.end());
+  // The defaults block reached every stage.
+  for (const StageConfig& s : c.stages) {
+    EXPECT_EQ(s.batch_rays, 1024);
+    EXPECT_EQ(s.samples_per_ray, 32);
+  }
+  EXPECT_EQ(
+      LoadSolverConfig(std::string(BANMO_SOURCE_DIR) + "/problems/rigid.yaml").model.num_bones, 0);
+}
+
+TEST(SolverConfig, UnknownKeysNamePathAndLine) {
+  struct Case {
+    std::string yaml;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"stages: [{}]\nfoo: 1\n", "test.yaml: unknown key 'foo' (line 2)"},
+      {"model:\n  num_bone: 3\nstages: [{}]\n", "test.yaml: unknown key 'model.num_bone' (line 2)"},
+      {"model:\n  field:\n    position_encoding:\n      num_bandz: 3\nstages: [{}]\n",
+       "test.yaml: unknown key 'model.field.position_encoding.num_bandz' (line 4)"},
+      {"stages:\n  - name: a\n  - name: b\n    adam:\n      lrr: 0.1\n",
+       "test.yaml: unknown key 'stages[1].adam.lrr' (line 5)"},
+      {"stages:\n  - losses:\n      rgb:\n        robust: {typ: huber}\n",
+       "test.yaml: unknown key 'stages[0].losses.rgb.robust.typ' (line 4)"},
+      {"defaults:\n  sampling:\n    foo: 1\nstages: [{}]\n",
+       "test.yaml: unknown key 'defaults.sampling.foo' (line 3)"},
+      {"stages:\n  - name: a\n    name: b\n", "test.yaml: duplicate key 'stages[0].name' (line 3)"},
+  };
+  for (const Case& c : cases) {
+    EXPECT_EQ(ParseError(c.yaml), c.message) << c.yaml;
+  }
+}
+
+TEST(SolverConfig, WrongTypesNameKeyAndExpectedType) {
+  struct Case {
+    std::string yaml;
+    std::vector<std::string> parts;  // all must appear in the message
+  };
+  const std::vector<Case> cases = {
+      {"stages:\n  - iterations: abc\n",
+       {"test.yaml: key 'stages[0].iterations' (line 2)", "expected an integer", "'abc'"}},
+      {"stages:\n  - iterations: 1.5\n", {"'stages[0].iterations'", "an integer"}},
+      {"stages:\n  - iterations: 99999999999\n", {"'stages[0].iterations'", "an integer"}},
+      {"stages:\n  - losses: {rgb: {weight: [1]}}\n",
+       {"'stages[0].losses.rgb.weight'", "a finite number", "got a list"}},
+      {"stages:\n  - losses: {rgb: {weight: .nan}}\n", {"rgb.weight'", "a finite number"}},
+      {"stages:\n  - sampling: {importance_depth: 3}\n",
+       {"'stages[0].sampling.importance_depth'", "true or false"}},
+      {"stages:\n  - sampling: {flow_gaps: [1, x]}\n",
+       {"'stages[0].sampling.flow_gaps[1]'", "an integer", "'x'"}},
+      {"stages:\n  - sampling: {flow_gaps: 4}\n", {"'stages[0].sampling.flow_gaps'", "a list"}},
+      {"stages:\n  - adam: 5\n", {"'stages[0].adam'", "expected a map", "'5'"}},
+      {"stages:\n  - constant: sdf\n", {"'stages[0].constant'", "a list"}},
+      {"stages:\n  - name: [a]\n", {"'stages[0].name'", "a string"}},
+      {"model: {field: {activation: tanh}}\nstages: [{}]\n",
+       {"'model.field.activation'", "softplus or relu", "'tanh'"}},
+      {"seed: -1\nstages: [{}]\n", {"key 'seed' (line 1)", "0..4294967295"}},
+      {"threads: two\nstages: [{}]\n", {"key 'threads'", "an integer"}},
+      {"stages: {a: 1}\n", {"key 'stages'", "a list of stages"}},
+      {"- 1\n- 2\n", {"test.yaml", "(top level)", "a map"}},
+      {"stages: [{}\n", {"test.yaml", "invalid YAML", "line"}},
+  };
+  for (const Case& c : cases) {
+    const std::string message = ParseError(c.yaml);
+    for (const std::string& part : c.parts) {
+      EXPECT_NE(message.find(part), std::string::npos)
+          << "yaml:\n"
+          << c.yaml << "message: " << message << "\nmissing: " << part;
+    }
+  }
+}
+
+TEST(SolverConfig, EmptyOrMissingStagesAreErrors) {
+  EXPECT_NE(ParseError("stages: []\n").find("test.yaml: stages: expected a non-empty list"),
+            std::string::npos);
+  EXPECT_NE(ParseError("seed: 1\n").find("'stages'"), std::string::npos);
+  EXPECT_NE(ParseError("").find("test.yaml: empty config"), std::string::npos);
+  SolverConfig c;
+  EXPECT_NE(ErrorOf([&] { CheckSolverConfig(c, "x"); }).find("x: stages:"), std::string::npos);
+}
+
+TEST(SolverConfig, LoadNamesTheFile) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("banmo_config_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string path = (dir / "bad.yaml").string();
+  {
+    std::ofstream out(path);
+    out << "stages:\n  - lm: {linear_solver: dense_qr}\n";
+  }
+  const std::string message = ErrorOf([&] { LoadSolverConfig(path); });
+  EXPECT_EQ(message.rfind(path + ": stages[0].lm.linear_solver: expected one of", 0), 0u)
+      << message;
+  EXPECT_NE(ErrorOf([&] {
+              LoadSolverConfig((dir / "missing.yaml").string());
+            }).find("missing.yaml: cannot open"),
+            std::string::npos);
+  fs::remove_all(dir);
+}
+
+// Each violated constraint gives an error naming its key.
+TEST(SolverConfig, EveryConstraintNamesItsKey) {
+  struct Case {
+    std::string key;  // expected in the message as "x.yaml: <key>"
+    std::function<void(SolverConfig*)> mutate;
+  };
+  auto S = [](SolverConfig* c) -> StageConfig& { return c->stages[1]; };
+  const std::vector<Case> cases = {
+      {"threads", [](SolverConfig* c) { c->threads = -1; }},
+      {"model.num_bones", [](SolverConfig* c) { c->model.num_bones = 257; }},
+      {"model.num_bones", [](SolverConfig* c) { c->model.num_bones = -1; }},
+      {"model.init_bone_scale", [](SolverConfig* c) { c->model.init_bone_scale = 0; }},
+      {"model.init_beta", [](SolverConfig* c) { c->model.init_beta = -1; }},
+      {"model.field.sdf_width", [](SolverConfig* c) { c->model.field.sdf_width = 0; }},
+      {"model.field.sdf_layers", [](SolverConfig* c) { c->model.field.sdf_layers = 0; }},
+      {"model.field.position_encoding.num_bands",
+       [](SolverConfig* c) { c->model.field.position_encoding.num_bands = -1; }},
+      {"model.field.position_encoding.include_input",
+       [](SolverConfig* c) { c->model.field.position_encoding.include_input = false; }},
+      {"model.field.view_encoding.base_frequency",
+       [](SolverConfig* c) { c->model.field.view_encoding.base_frequency = 0; }},
+      {"model.field.softplus_beta", [](SolverConfig* c) { c->model.field.softplus_beta = 0; }},
+      {"model.field:",
+       [](SolverConfig* c) {
+         c->model.field.geometry_feature_dim = 0;
+         c->model.field.use_view_direction = false;
+         c->model.field.appearance_code_dim = 0;
+       }},
+      {"stages[1].name", [&](SolverConfig* c) { S(c).name = ""; }},
+      {"stages[1].iterations", [&](SolverConfig* c) { S(c).iterations = 0; }},
+      {"stages[1].step_rule", [&](SolverConfig* c) { S(c).step_rule = "sgd"; }},
+      {"stages[1].batch_rays", [&](SolverConfig* c) { S(c).batch_rays = 0; }},
+      {"stages[1].samples_per_ray", [&](SolverConfig* c) { S(c).samples_per_ray = -2; }},
+      {"stages[1].losses.rgb.weight", [&](SolverConfig* c) { S(c).losses.rgb.weight = -1; }},
+      {"stages[1].losses.pose_smoothness.robust.type",
+       [&](SolverConfig* c) { S(c).losses.pose_smoothness.robust.type = "l1"; }},
+      {"stages[1].losses.flow.robust.scale",
+       [&](SolverConfig* c) { S(c).losses.flow.robust.scale = 0; }},
+      {"stages[1].losses:",
+       [&](SolverConfig* c) {
+         LossesConfig& l = S(c).losses;
+         for (LossConfig* x : {&l.rgb, &l.silhouette, &l.flow, &l.feature_match, &l.cycle_2d,
+                               &l.cycle_3d, &l.eikonal, &l.bone_inside, &l.pose_smoothness}) {
+           x->weight = 0;
+         }
+       }},
+      {"stages[1].losses.bone_inside_margin",
+       [&](SolverConfig* c) { S(c).losses.bone_inside_margin = -0.1; }},
+      {"stages[1].constant[1]",
+       [&](SolverConfig* c) {
+         S(c).constant = {"sdf", "shape"};
+       }},
+      {"stages[1].constant[1]",
+       [&](SolverConfig* c) {
+         S(c).constant = {"sdf", "sdf"};
+       }},
+      {"stages[1].constant:",
+       [&](SolverConfig* c) {
+         S(c).constant = {"sdf",  "color", "embedding", "log_beta",  "appearance",
+                          "root", "bones", "bones_t",   "intrinsics"};
+       }},
+      {"stages[1].adam.lr", [&](SolverConfig* c) { S(c).adam.lr = 0; }},
+      {"stages[1].adam.beta1", [&](SolverConfig* c) { S(c).adam.beta1 = 1; }},
+      {"stages[1].adam.beta2", [&](SolverConfig* c) { S(c).adam.beta2 = -0.1; }},
+      {"stages[1].adam.epsilon", [&](SolverConfig* c) { S(c).adam.epsilon = 0; }},
+      {"stages[1].adam.weight_decay", [&](SolverConfig* c) { S(c).adam.weight_decay = -1; }},
+      {"stages[1].adam.schedule", [&](SolverConfig* c) { S(c).adam.schedule = "cosine"; }},
+      {"stages[1].adam.warmup_fraction", [&](SolverConfig* c) { S(c).adam.warmup_fraction = 1.5; }},
+      {"stages[1].adam.final_lr_fraction",
+       [&](SolverConfig* c) { S(c).adam.final_lr_fraction = -0.5; }},
+      {"stages[1].adam.pose_lr_scale", [&](SolverConfig* c) { S(c).adam.pose_lr_scale = 0; }},
+      {"stages[1].adam.bone_lr_scale", [&](SolverConfig* c) { S(c).adam.bone_lr_scale = -1; }},
+      {"stages[1].lm.max_cg_iterations", [&](SolverConfig* c) { S(c).lm.max_cg_iterations = 0; }},
+      {"stages[1].lm.initial_radius", [&](SolverConfig* c) { S(c).lm.initial_radius = 0; }},
+      {"stages[1].lm.max_radius", [&](SolverConfig* c) { S(c).lm.max_radius = 10; }},
+      {"stages[1].lm.linear_solver", [&](SolverConfig* c) { S(c).lm.linear_solver = "dense"; }},
+      {"stages[1].lm.iterations_per_batch",
+       [&](SolverConfig* c) { S(c).lm.iterations_per_batch = 0; }},
+      {"stages[1].sampling.foreground_fraction",
+       [&](SolverConfig* c) { S(c).sampling.foreground_fraction = 1.1; }},
+      {"stages[1].sampling.active_fraction",
+       [&](SolverConfig* c) { S(c).sampling.active_fraction = -0.1; }},
+      {"stages[1].sampling.near_far_margin",
+       [&](SolverConfig* c) { S(c).sampling.near_far_margin = -1; }},
+      {"stages[1].sampling.flow_gaps[2]",
+       [&](SolverConfig* c) {
+         S(c).sampling.flow_gaps = {1, 2, 0};
+       }},
+      {"stages[1].sampling.flow_gaps:", [&](SolverConfig* c) { S(c).sampling.flow_gaps = {}; }},
+      {"stages[1].sampling.eikonal_points",
+       [&](SolverConfig* c) { S(c).sampling.eikonal_points = 0; }},
+      {"stages[1].sampling.match_grid_points",
+       [&](SolverConfig* c) { S(c).sampling.match_grid_points = 0; }},
+      {"stages[1].sampling.match_top_k", [&](SolverConfig* c) { S(c).sampling.match_top_k = 0; }},
+      {"stages[1].sampling.match_top_k",
+       [&](SolverConfig* c) { S(c).sampling.match_top_k = S(c).sampling.match_grid_points + 1; }},
+      {"stages[1].schedule.bone_reinit_at[0]",
+       [&](SolverConfig* c) { S(c).schedule.bone_reinit_at = {1.2}; }},
+      {"stages[1].schedule.bone_reinit_at[1]",
+       [&](SolverConfig* c) {
+         S(c).schedule.bone_reinit_at = {0.5, 0.2};
+       }},
+      {"stages[1].schedule.bounds_refresh_every",
+       [&](SolverConfig* c) { S(c).schedule.bounds_refresh_every = -1; }},
+      {"stages[1].schedule.anneal_end_fraction",
+       [&](SolverConfig* c) { S(c).schedule.anneal_end_fraction = 2; }},
+      {"stages[1].schedule.delta_skinning_from",
+       [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = -1; }},
+      {"stages[1].checkpoint_every", [&](SolverConfig* c) { S(c).checkpoint_every = -1; }},
+      {"stages[1].log_every", [&](SolverConfig* c) { S(c).log_every = -1; }},
+  };
+  SolverConfig valid;
+  valid.stages.resize(2);
+  ASSERT_NO_THROW(CheckSolverConfig(valid, "x.yaml"));
+  for (const Case& c : cases) {
+    SolverConfig config = valid;
+    c.mutate(&config);
+    const std::string message = ErrorOf([&] { CheckSolverConfig(config, "x.yaml"); });
+    EXPECT_EQ(message.rfind("x.yaml: " + c.key, 0), 0u)
+        << "expected key " << c.key << ", message: '" << message << "'";
+    // The same violation written as YAML fails the parse with the same message.
+    const std::string yaml = SolverConfigToYaml(config);
+    EXPECT_EQ(ErrorOf([&] { ParseSolverConfig(yaml, "x.yaml"); }), message);
+  }
+}
+
+TEST(SolverConfig, DefaultsMergeUnderEveryStage) {
+  const SolverConfig c = ParseSolverConfig(R"(
+defaults:
+  batch_rays: 512
+  constant: [root, intrinsics]
+  adam: {lr: 0.01, beta1: 0.8}
+  sampling: {flow_gaps: [3]}
+stages:
+  - name: a
+  - name: b
+    adam: {beta1: 0.5}
+    constant: [sdf]
+    sampling: {importance_depth: true}
+  - batch_rays: 64
+    constant: []
+)",
+                                           "test.yaml");
+  ASSERT_EQ(c.stages.size(), 3u);
+  const StageConfig d;
+  const StageConfig& a = c.stages[0];
+  EXPECT_EQ(a.name, "a");
+  EXPECT_EQ(a.batch_rays, 512);
+  EXPECT_EQ(a.adam.lr, 0.01);
+  EXPECT_EQ(a.adam.beta1, 0.8);
+  EXPECT_EQ(a.adam.beta2, d.adam.beta2);  // untouched keys keep the struct default
+  EXPECT_EQ(a.constant, (std::vector<std::string>{"root", "intrinsics"}));
+  EXPECT_EQ(a.sampling.flow_gaps, std::vector<int>{3});
+  EXPECT_EQ(a.samples_per_ray, d.samples_per_ray);
+  // Maps merge key by key; lists replace.
+  const StageConfig& b = c.stages[1];
+  EXPECT_EQ(b.adam.lr, 0.01);
+  EXPECT_EQ(b.adam.beta1, 0.5);
+  EXPECT_EQ(b.constant, std::vector<std::string>{"sdf"});
+  EXPECT_TRUE(b.sampling.importance_depth);
+  EXPECT_EQ(b.sampling.flow_gaps, std::vector<int>{3});
+  EXPECT_EQ(b.batch_rays, 512);
+  const StageConfig& s3 = c.stages[2];
+  EXPECT_EQ(s3.name, d.name);
+  EXPECT_EQ(s3.batch_rays, 64);
+  EXPECT_TRUE(s3.constant.empty());
+  EXPECT_FALSE(s3.sampling.importance_depth);
+}
+
+// Sets every field to a value different from its default.
+SolverConfig EveryFieldChanged() {
+  SolverConfig c;
+  ModelOptions& m = c.model;
+  m.field.position_encoding = {5, true, 0.75};
+  m.field.sdf_width = 24;
+  m.field.sdf_layers = 4;
+  m.field.geometry_feature_dim = 3;
+  m.field.color_width = 20;
+  m.field.color_layers = 1;
+  m.field.use_view_direction = false;
+  m.field.view_encoding = {2, false, 0.5};
+  m.field.appearance_code_dim = 7;
+  m.field.embedding_width = 12;
+  m.field.embedding_layers = 3;
+  m.field.activation = Activation::kRelu;
+  m.field.softplus_beta = 37.5;
+  m.field.init_sphere_radius = 0.3;
+  m.num_bones = 13;
+  m.init_bone_scale = 0.1 / 3.0;  // not exactly representable in short decimal
+  m.init_beta = 0.07;
+  m.seed = 4000000000u;
+  c.seed = 123456789u;
+  c.threads = 3;
+  for (int i = 0; i < 2; ++i) {
+    StageConfig s;
+    s.name = i == 0 ? "first stage" : "null";  // "null" must stay a string
+    s.iterations = 77 + i;
+    s.step_rule = i == 0 ? "lm" : "alternate";
+    s.batch_rays = 333;
+    s.samples_per_ray = 17;
+    double w = 0.1;
+    LossesConfig& l = s.losses;
+    for (LossConfig* x : {&l.rgb, &l.silhouette, &l.flow, &l.feature_match, &l.cycle_2d,
+                          &l.cycle_3d, &l.eikonal, &l.bone_inside, &l.pose_smoothness}) {
+      x->weight = (w += 0.123);
+      x->robust = {"cauchy", w * 2};
+    }
+    l.bone_inside_margin = 0.031;
+    s.constant = {"sdf", "bones_t"};
+    s.adam = {1.25e-3, 0.85, 0.995, 1e-10, 1e-4, "constant", 0.2, 0.05, 2.5, 3.5};
+    s.lm = {9, 123.0, 4.5e7, "iterative_schur", 2};
+    s.sampling.foreground_fraction = 0.7;
+    s.sampling.active_fraction = 0.15;
+    s.sampling.importance_depth = true;
+    s.sampling.near_far_margin = 0.33;
+    s.sampling.flow_gaps = {1, 3};
+    s.sampling.eikonal_points = 100;
+    s.sampling.match_grid_points = 1000;
+    s.sampling.match_top_k = 10;
+    s.schedule.bone_reinit_at = {0.1, 0.9};
+    s.schedule.bounds_refresh_every = 25;
+    s.schedule.anneal_end_fraction = 0.4;
+    s.schedule.delta_skinning_from = 0.6;
+    s.checkpoint_every = 50;
+    s.log_every = 5;
+    c.stages.push_back(s);
+  }
+  return c;
+}
+
+void ExpectSameEncoding(const PositionalEncodingOptions& a, const PositionalEncodingOptions& b) {
+  EXPECT_EQ(a.num_bands, b.num_bands);
+  EXPECT_EQ(a.include_input, b.include_input);
+  EXPECT_EQ(a.base_frequency, b.base_frequency);
+}
+
+void ExpectSameLoss(const LossConfig& a, const LossConfig& b) {
+  EXPECT_EQ(a.weight, b.weight);
+  EXPECT_EQ(a.robust.type, b.robust.type);
+  EXPECT_EQ(a.robust.scale, b.robust.scale);
+}
+
+// Field by field; doubles compared exactly (the writer prints round-trip
+// decimals).
+void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
+  const CanonicalFieldOptions& f = a.model.field;
+  const CanonicalFieldOptions& g = b.model.field;
+  ExpectSameEncoding(f.position_encoding, g.position_encoding);
+  EXPECT_EQ(f.sdf_width, g.sdf_width);
+  EXPECT_EQ(f.sdf_layers, g.sdf_layers);
+  EXPECT_EQ(f.geometry_feature_dim, g.geometry_feature_dim);
+  EXPECT_EQ(f.color_width, g.color_width);
+  EXPECT_EQ(f.color_layers, g.color_layers);
+  EXPECT_EQ(f.use_view_direction, g.use_view_direction);
+  ExpectSameEncoding(f.view_encoding, g.view_encoding);
+  EXPECT_EQ(f.appearance_code_dim, g.appearance_code_dim);
+  EXPECT_EQ(f.embedding_width, g.embedding_width);
+  EXPECT_EQ(f.embedding_layers, g.embedding_layers);
+  EXPECT_EQ(f.activation, g.activation);
+  EXPECT_EQ(f.softplus_beta, g.softplus_beta);
+  EXPECT_EQ(f.init_sphere_radius, g.init_sphere_radius);
+  EXPECT_EQ(a.model.num_bones, b.model.num_bones);
+  EXPECT_EQ(a.model.init_bone_scale, b.model.init_bone_scale);
+  EXPECT_EQ(a.model.init_beta, b.model.init_beta);
+  EXPECT_EQ(a.model.seed, b.model.seed);
+  EXPECT_EQ(a.seed, b.seed);
+  EXPECT_EQ(a.threads, b.threads);
+  ASSERT_EQ(a.stages.size(), b.stages.size());
+  for (size_t i = 0; i < a.stages.size(); ++i) {
+    SCOPED_TRACE("stage " + std::to_string(i));
+    const StageConfig& s = a.stages[i];
+    const StageConfig& t = b.stages[i];
+    EXPECT_EQ(s.name, t.name);
+    EXPECT_EQ(s.iterations, t.iterations);
+    EXPECT_EQ(s.step_rule, t.step_rule);
+    EXPECT_EQ(s.batch_rays, t.batch_rays);
+    EXPECT_EQ(s.samples_per_ray, t.samples_per_ray);
+    ExpectSameLoss(s.losses.rgb, t.losses.rgb);
+    ExpectSameLoss(s.losses.silhouette, t.losses.silhouette);
+    ExpectSameLoss(s.losses.flow, t.losses.flow);
+    ExpectSameLoss(s.losses.feature_match, t.losses.feature_match);
+    ExpectSameLoss(s.losses.cycle_2d, t.losses.cycle_2d);
+    ExpectSameLoss(s.losses.cycle_3d, t.losses.cycle_3d);
+    ExpectSameLoss(s.losses.eikonal, t.losses.eikonal);
+    ExpectSameLoss(s.losses.bone_inside, t.losses.bone_inside);
+    ExpectSameLoss(s.losses.pose_smoothness, t.losses.pose_smoothness);
+    EXPECT_EQ(s.losses.bone_inside_margin, t.losses.bone_inside_margin);
+    EXPECT_EQ(s.constant, t.constant);
+    EXPECT_EQ(s.adam.lr, t.adam.lr);
+    EXPECT_EQ(s.adam.beta1, t.adam.beta1);
+    EXPECT_EQ(s.adam.beta2, t.adam.beta2);
+    EXPECT_EQ(s.adam.epsilon, t.adam.epsilon);
+    EXPECT_EQ(s.adam.weight_decay, t.adam.weight_decay);
+    EXPECT_EQ(s.adam.schedule, t.adam.schedule);
+    EXPECT_EQ(s.adam.warmup_fraction, t.adam.warmup_fraction);
+    EXPECT_EQ(s.adam.final_lr_fraction, t.adam.final_lr_fraction);
+    EXPECT_EQ(s.adam.pose_lr_scale, t.adam.pose_lr_scale);
+    EXPECT_EQ(s.adam.bone_lr_scale, t.adam.bone_lr_scale);
+    EXPECT_EQ(s.lm.max_cg_iterations, t.lm.max_cg_iterations);
+    EXPECT_EQ(s.lm.initial_radius, t.lm.initial_radius);
+    EXPECT_EQ(s.lm.max_radius, t.lm.max_radius);
+    EXPECT_EQ(s.lm.linear_solver, t.lm.linear_solver);
+    EXPECT_EQ(s.lm.iterations_per_batch, t.lm.iterations_per_batch);
+    EXPECT_EQ(s.sampling.foreground_fraction, t.sampling.foreground_fraction);
+    EXPECT_EQ(s.sampling.active_fraction, t.sampling.active_fraction);
+    EXPECT_EQ(s.sampling.importance_depth, t.sampling.importance_depth);
+    EXPECT_EQ(s.sampling.near_far_margin, t.sampling.near_far_margin);
+    EXPECT_EQ(s.sampling.flow_gaps, t.sampling.flow_gaps);
+    EXPECT_EQ(s.sampling.eikonal_points, t.sampling.eikonal_points);
+    EXPECT_EQ(s.sampling.match_grid_points, t.sampling.match_grid_points);
+    EXPECT_EQ(s.sampling.match_top_k, t.sampling.match_top_k);
+    EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
+    EXPECT_EQ(s.schedule.bounds_refresh_every, t.schedule.bounds_refresh_every);
+    EXPECT_EQ(s.schedule.anneal_end_fraction, t.schedule.anneal_end_fraction);
+    EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
+    EXPECT_EQ(s.checkpoint_every, t.checkpoint_every);
+    EXPECT_EQ(s.log_every, t.log_every);
+  }
+}
+
+// Leaf paths and scalar values of a YAML tree.
+void Leaves(const YAML::Node& node, const std::string& path,
+            std::map<std::string, std::string>* out) {
+  if (node.IsMap()) {
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      Leaves(it->second, path + "." + it->first.Scalar(), out);
+    }
+  } else if (node.IsSequence()) {
+    std::string joined;
+    for (size_t i = 0; i < node.size(); ++i) {
+      if (node[i].IsMap()) {
+        Leaves(node[i], path + "[" + std::to_string(i) + "]", out);
+      } else {
+        joined += node[i].Scalar() + ",";
+      }
+    }
+    if (node.size() == 0 || !node[0].IsMap()) (*out)[path] = "[" + joined + "]";
+  } else {
+    (*out)[path] = node.Scalar();
+  }
+}
+
+TEST(SolverConfig, RoundTripKeepsEveryField) {
+  const SolverConfig c = EveryFieldChanged();
+  ASSERT_NO_THROW(CheckSolverConfig(c, "changed"));
+  const std::string yaml = SolverConfigToYaml(c);
+  const SolverConfig back = ParseSolverConfig(yaml, "resolved");
+  ExpectSame(c, back);
+  EXPECT_EQ(SolverConfigToYaml(back), yaml);
+
+  // EveryFieldChanged really changes every written key (so ExpectSame above
+  // covers every field the writer knows): compare with a default config of
+  // the same shape, leaf by leaf.
+  SolverConfig d;
+  d.stages.resize(c.stages.size());
+  std::map<std::string, std::string> changed, defaults;
+  Leaves(YAML::Load(yaml), "", &changed);
+  Leaves(YAML::Load(SolverConfigToYaml(d)), "", &defaults);
+  EXPECT_EQ(changed.size(), defaults.size());
+  EXPECT_GT(changed.size(), 100u);
+  for (const auto& [key, value] : defaults) {
+    ASSERT_TRUE(changed.count(key)) << key;
+    // Must be true in a valid config; EveryConstraintNamesItsKey shows the
+    // reader reads it (include_input: false fails the parse).
+    if (key == ".model.field.position_encoding.include_input") continue;
+    EXPECT_NE(changed[key], value) << key << " unchanged by EveryFieldChanged";
+  }
+  // And the default config round-trips too.
+  ExpectSame(d, ParseSolverConfig(SolverConfigToYaml(d), "defaults"));
+}
+
+TEST(SolverConfig, ResolvedYamlIsReadable) {
+  const std::string yaml = SolverConfigToYaml(ParseSolverConfig(
+      "stages: [{adam: {lr: 0.0005}, sampling: {flow_gaps: [1, 2]}}]\n", "test.yaml"));
+  // Short decimals, flow lists, enum words.
+  EXPECT_NE(yaml.find("lr: 0.0005\n"), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("flow_gaps: [1, 2]"), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("activation: softplus"), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("include_input: true"), std::string::npos) << yaml;
+}
+
+}  // namespace
+}  // namespace banmo
