@@ -13,9 +13,11 @@
 #include <fstream>
 #include <limits>
 #include <locale>
+#include <map>
 #include <set>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "banmo/util/error.h"
@@ -354,6 +356,46 @@ void ReadStruct(const std::string& source, const std::string& path, const YAML::
   VisitFields(reader, *value);
 }
 
+// Line (1-based) of every key and list element, by path ("stages[1].adam.lr").
+void CollectLines(const YAML::Node& node, const std::string& path,
+                  std::map<std::string, int>* lines) {
+  if (node.IsMap()) {
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const YAML::Node key = it->first;
+      if (!key.IsScalar()) continue;
+      const std::string child = Join(path, key.Scalar());
+      if (!key.Mark().is_null()) lines->emplace(child, key.Mark().line + 1);
+      CollectLines(it->second, child, lines);
+    }
+  } else if (node.IsSequence()) {
+    for (size_t i = 0; i < node.size(); ++i) {
+      const std::string child = path + "[" + std::to_string(i) + "]";
+      if (!node[i].Mark().is_null()) lines->emplace(child, node[i].Mark().line + 1);
+      CollectLines(node[i], child, lines);
+    }
+  }
+}
+
+// The line a checked key comes from: the key itself, else the same key in
+// `defaults:` (stage keys inherited from there), else its nearest parent.
+int LineOfKey(std::string key, const std::map<std::string, int>& lines) {
+  while (!key.empty()) {
+    auto it = lines.find(key);
+    if (it != lines.end()) return it->second;
+    if (key.rfind("stages[", 0) == 0) {
+      const size_t close = key.find(']');
+      if (close != std::string::npos) {
+        const std::string rest = key.substr(close + 1);
+        it = lines.find(rest.empty() ? "defaults" : "defaults" + rest);
+        if (it != lines.end()) return it->second;
+      }
+    }
+    const size_t cut = key.find_last_of(".[");
+    key = cut == std::string::npos ? std::string() : key.substr(0, cut);
+  }
+  return 0;
+}
+
 // ---- Writing. ----
 
 // Shortest decimal that reads back to the same double.
@@ -378,6 +420,11 @@ class FieldWriter {
 
   template <class S>
   void WriteStruct(S& value) {
+    // Small leaf structs on one line: rgb: {weight: 1, robust: {type: none, scale: 1}}.
+    if (std::is_same_v<S, LossConfig> || std::is_same_v<S, RobustLossConfig> ||
+        std::is_same_v<S, PositionalEncodingOptions>) {
+      out_ << YAML::Flow;
+    }
     out_ << YAML::BeginMap;
     VisitFields(*this, value);
     out_ << YAML::EndMap;
@@ -610,7 +657,21 @@ SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& 
     ReadStruct(source, "stages[" + std::to_string(i) + "]", stages[i], &stage);
     config.stages.push_back(std::move(stage));
   }
-  CheckSolverConfig(config, source);
+  try {
+    CheckSolverConfig(config, source);
+  } catch (const InputError& e) {
+    // Add the line of the offending key: "<source>: <key>[: ]..." -> "... (line N)".
+    const std::string message = e.what();
+    const size_t begin = source.size() + 2;
+    const size_t end = message.find_first_of(": ", begin);
+    std::map<std::string, int> lines;
+    CollectLines(root, "", &lines);
+    const int line = message.rfind(source + ": ", 0) == 0 && end != std::string::npos
+                         ? LineOfKey(message.substr(begin, end - begin), lines)
+                         : 0;
+    if (line > 0) ThrowInputError(message, " (line ", line, ")");
+    throw;
+  }
   return config;
 }
 

@@ -309,10 +309,34 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
     const std::string message = ErrorOf([&] { CheckSolverConfig(config, "x.yaml"); });
     EXPECT_EQ(message.rfind("x.yaml: " + c.key, 0), 0u)
         << "expected key " << c.key << ", message: '" << message << "'";
-    // The same violation written as YAML fails the parse with the same message.
+    // The same violation written as YAML fails the parse with the same
+    // message plus the key's line.
     const std::string yaml = SolverConfigToYaml(config);
-    EXPECT_EQ(ErrorOf([&] { ParseSolverConfig(yaml, "x.yaml"); }), message);
+    const std::string parse_message = ErrorOf([&] { ParseSolverConfig(yaml, "x.yaml"); });
+    EXPECT_EQ(parse_message.rfind(message + " (line ", 0), 0u) << parse_message;
   }
+}
+
+TEST(SolverConfig, ConstraintErrorsFromYamlGiveTheLine) {
+  // The key itself.
+  EXPECT_EQ(ParseError("stages:\n  - name: a\n  - adam:\n      lr: -1\n"),
+            "test.yaml: stages[1].adam.lr: expected a finite number > 0, got -1 (line 4)");
+  // A value inherited from defaults: the line in `defaults:`.
+  EXPECT_EQ(ParseError("defaults:\n  batch_rays: 0\nstages:\n  - name: a\n"),
+            "test.yaml: stages[0].batch_rays: expected an integer > 0, got 0 (line 2)");
+  // A key not written: its nearest written parent.
+  EXPECT_EQ(ParseError("stages:\n  - name: a\n    sampling: {match_grid_points: 8}\n"),
+            "test.yaml: stages[0].sampling.match_top_k: expected <= sampling.match_grid_points "
+            "(8), got 32 (line 3)");
+  // A list element.
+  EXPECT_EQ(ParseError("stages:\n  - constant:\n      - sdf\n      - shape\n")
+                .find("stages[0].constant[1]: expected one of"),
+            std::string("test.yaml: ").size());
+  EXPECT_NE(ParseError("stages:\n  - constant:\n      - sdf\n      - shape\n").find("(line 4)"),
+            std::string::npos);
+  // Model keys.
+  EXPECT_EQ(ParseError("stages: [{}]\nmodel:\n  field:\n    sdf_width: 0\n"),
+            "test.yaml: model.field.sdf_width must be > 0 (line 4)");
 }
 
 TEST(SolverConfig, DefaultsMergeUnderEveryStage) {
@@ -384,7 +408,7 @@ SolverConfig EveryFieldChanged() {
   c.threads = 3;
   for (int i = 0; i < 2; ++i) {
     StageConfig s;
-    s.name = i == 0 ? "first stage" : "null";  // "null" must stay a string
+    s.name = i == 0 ? "first: stage #1" : "null";  // quoting; "null" must stay a string
     s.iterations = 77 + i;
     s.step_rule = i == 0 ? "lm" : "alternate";
     s.batch_rays = 333;
