@@ -10,6 +10,7 @@
 #include <functional>
 #include <map>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -592,6 +593,40 @@ TEST(SolverConfig, ResolvedYamlIsReadable) {
   EXPECT_NE(yaml.find("flow_gaps: [1, 2]"), std::string::npos) << yaml;
   EXPECT_NE(yaml.find("activation: softplus"), std::string::npos) << yaml;
   EXPECT_NE(yaml.find("include_input: true"), std::string::npos) << yaml;
+}
+
+// docs/config.md: its YAML examples parse, and every key of the resolved
+// config is documented there (as `key`).
+TEST(SolverConfig, DocsExamplesParseAndEveryKeyIsDocumented) {
+  std::ifstream in(std::string(BANMO_SOURCE_DIR) + "/docs/config.md");
+  ASSERT_TRUE(in.good());
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string doc = text.str();
+  int examples = 0;
+  for (size_t pos = doc.find("```yaml\n"); pos != std::string::npos;
+       pos = doc.find("```yaml\n", pos + 1)) {
+    const size_t begin = pos + 8;
+    const size_t end = doc.find("```", begin);
+    ASSERT_NE(end, std::string::npos);
+    const std::string yaml = doc.substr(begin, end - begin);
+    EXPECT_NO_THROW(ParseSolverConfig(yaml, "docs example")) << yaml;
+    ++examples;
+  }
+  EXPECT_GE(examples, 3);
+
+  SolverConfig c;
+  c.stages.resize(1);
+  std::map<std::string, std::string> leaves;
+  Leaves(YAML::Load(SolverConfigToYaml(c)), "", &leaves);
+  for (const auto& entry : leaves) {
+    const std::string& path = entry.first;
+    const std::string key = path.substr(path.find_last_of(".]") + 1);
+    // Loss terms are documented as `<term>.weight` etc. plus the term names.
+    const bool documented = doc.find("`" + key + "`") != std::string::npos ||
+                            doc.find("." + key + "`") != std::string::npos;
+    EXPECT_TRUE(documented) << key << " (" << path << ")";
+  }
 }
 
 }  // namespace
