@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "banmo/model/model.h"
 #include "banmo/util/error.h"
 
 namespace banmo {
@@ -70,6 +71,22 @@ TEST(SolverConfig, EveryProblemFileLoadsAndChecks) {
   }
   for (const char* required : {"default", "quadruped", "bird", "hand", "fox", "rigid", "tiny"}) {
     EXPECT_TRUE(names.count(required)) << "problems/" << required << ".yaml missing";
+  }
+}
+
+// Each shipped model builds (field MLPs, bones) without tripping a CHECK.
+TEST(SolverConfig, ProblemModelsConstruct) {
+  for (const auto& entry : fs::directory_iterator(fs::path(BANMO_SOURCE_DIR) / "problems")) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    const SolverConfig c = LoadSolverConfig(entry.path().string());
+    PinholeCamera camera;
+    camera.width = 64;
+    camera.height = 48;
+    camera.intrinsics << 60, 60, 32, 24;
+    const Model model(c.model, {2}, {camera});
+    EXPECT_EQ(model.num_bones(), c.model.num_bones);
+    EXPECT_GT(model.sdf_size(), 0);
   }
 }
 
