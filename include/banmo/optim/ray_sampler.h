@@ -1,0 +1,62 @@
+// Minibatches of pixel rays drawn from a dataset (DESIGN.md Sec. 2, 6):
+// a fresh random set per batch, part inside the object mask, part uniform
+// over the image, part "active" (near pixels whose residuals were large in
+// earlier batches), each with a random flow partner frame and stratified
+// depth samples between the frame's near and far planes.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <random>
+#include <vector>
+
+#include "banmo/io/dataset.h"
+#include "banmo/losses/ray.h"
+#include "banmo/model/model.h"
+#include "banmo/optim/config.h"
+
+namespace banmo {
+
+// Near and far camera depths of a frame: the 8 corners of the canonical
+// bounds pushed through the root pose G^t, widened by `margin` (0.2 = +-20 %).
+void NearFarPlanes(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
+                   double margin, double* near, double* far);
+
+class RaySampler {
+ public:
+  // Indexes the object pixels of every usable frame (skipped frames are
+  // never drawn).
+  explicit RaySampler(const Dataset& dataset);
+
+  // Draws `count` rays with `samples_per_ray` depth samples each.
+  std::vector<Ray> Sample(int count, int samples_per_ray, const SamplingConfig& sampling,
+                          const Model& model, const Eigen::AlignedBox3d& canonical_bounds,
+                          std::mt19937* rng) const;
+
+  // Active sampling: remembers the rays of a batch with their errors; later
+  // batches draw `sampling.active_fraction` of their rays near the largest.
+  void RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors);
+
+  // The error cache, for checkpoints (resume must reproduce active sampling).
+  struct CachedPixel {
+    int video, frame, x, y;
+    double error;
+  };
+  const std::vector<CachedPixel>& error_cache() const { return error_cache_; }
+  void set_error_cache(std::vector<CachedPixel> cache) { error_cache_ = std::move(cache); }
+
+ private:
+  struct FrameRef {
+    int video;
+    int frame;
+  };
+  Ray MakeRay(int video, int frame, int x, int y, int samples_per_ray,
+              const SamplingConfig& sampling, const Model& model,
+              const Eigen::AlignedBox3d& canonical_bounds, std::mt19937* rng) const;
+
+  const Dataset& dataset_;
+  std::vector<FrameRef> frames_;
+  std::vector<std::vector<std::vector<int>>> object_pixels_;  // [video][frame] -> y * width + x
+  std::vector<CachedPixel> error_cache_;
+};
+
+}  // namespace banmo

@@ -1,0 +1,93 @@
+// The stage-by-stage solver (DESIGN.md Sec. 6): for each stage of the
+// config, minibatches of rays become residual blocks of one persistent
+// ceres::Problem (parameter blocks, manifolds and constant groups are set up
+// once per stage; the batch's residual blocks are replaced every iteration),
+// and a step rule moves the parameters:
+//   lm        Ceres TRUST_REGION / LEVENBERG_MARQUARDT, CGNR (or
+//             ITERATIVE_SCHUR), one LM iteration per minibatch, the radius
+//             carried from batch to batch with a cap;
+//   adam      AdamW with a one-cycle schedule on the gradient from
+//             ceres::Problem::Evaluate (manifolds and constant blocks
+//             respected: steps are taken in the tangent space);
+//   alternate Adam on the field MLPs, then LM on the small coupled blocks
+//             (root poses, bones, bone transforms) with the fields constant.
+// Checkpoints are atomic, on a schedule and on SIGINT; a resumed run gives
+// the same result as an uninterrupted one with the same seed.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "banmo/io/dataset.h"
+#include "banmo/model/model.h"
+#include "banmo/optim/config.h"
+
+namespace banmo {
+
+// A model for `dataset`: cameras and frame counts from the data, G0^t from
+// the dataset's rough root poses, MLPs and bones initialised from options.
+std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options);
+
+// Motion retargeting (paper Sec. 4.4): copies the shared parameters (canonical
+// fields, beta, rest bones) of `from` into `to`. Throws InputError naming
+// `source` if the two models' sizes differ.
+void CopySharedParameters(const Model& from, Model* to, const std::string& source);
+
+struct SolveOptions {
+  std::string out_dir;  // checkpoints go to out_dir/checkpoint (empty: no checkpoints)
+  bool resume = false;  // continue from out_dir/checkpoint
+  bool quiet = false;   // no progress lines
+  // Parameter groups held constant in every stage on top of the stage's own
+  // (retargeting freezes the shared ones).
+  std::vector<std::string> extra_constant;
+  // Stop after this many batches in total (for tests of resume; <0 = no limit).
+  int stop_after_batches = -1;
+};
+
+// Per-term mean losses (1/2 |r|^2 per ray, after weights) of the last batch.
+using TermLosses = std::map<std::string, double>;
+
+struct StageSummary {
+  std::string name;
+  int iterations = 0;
+  double seconds = 0.0;
+  double rays_per_second = 0.0;
+  TermLosses first_losses;  // first batch of the stage
+  TermLosses last_losses;   // last batch of the stage
+  bool finite = true;       // every parameter finite at the end
+};
+
+struct SolveResult {
+  std::vector<StageSummary> stages;
+  bool interrupted = false;  // stopped by SIGINT or stop_after_batches (checkpoint written)
+};
+
+class Solver {
+ public:
+  // The solver keeps references to dataset and config.
+  Solver(const Dataset& dataset, const SolverConfig& config, std::unique_ptr<Model> model);
+  ~Solver();
+
+  Model& model() { return *model_; }
+  const Model& model() const { return *model_; }
+  // Canonical bounds used for near/far planes, eikonal points and the
+  // soft-argmax grid.
+  const Eigen::AlignedBox3d& canonical_bounds() const { return bounds_; }
+
+  SolveResult Run(const SolveOptions& options);
+
+ private:
+  struct State;
+  SolveResult RunStages(const SolveOptions& options, State* state);
+
+  const Dataset& dataset_;
+  const SolverConfig& config_;
+  std::unique_ptr<Model> model_;
+  Eigen::AlignedBox3d bounds_;
+};
+
+}  // namespace banmo

@@ -1,0 +1,163 @@
+#include "banmo/optim/ray_sampler.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "banmo/util/logging.h"
+
+namespace banmo {
+namespace {
+constexpr size_t kErrorCacheSize = 4096;
+}  // namespace
+
+void NearFarPlanes(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
+                   double margin, double* near, double* far) {
+  double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner =
+        canonical_bounds.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
+    Eigen::Vector3d x;
+    PoseTransformPoint(camera_from_root.data(), corner.data(), x.data());
+    zmin = std::min(zmin, x.z());
+    zmax = std::max(zmax, x.z());
+  }
+  // Keep the near plane in front of the camera even for boxes around it.
+  *near = std::max(zmin * (1.0 - margin), 1e-3);
+  *far = std::max(zmax * (1.0 + margin), *near + 1e-3);
+}
+
+RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
+  object_pixels_.resize(dataset.videos.size());
+  for (size_t v = 0; v < dataset.videos.size(); ++v) {
+    const Video& video = dataset.videos[v];
+    object_pixels_[v].resize(video.frames.size());
+    for (size_t t = 0; t < video.frames.size(); ++t) {
+      const Frame& f = video.frames[t];
+      if (f.skip) continue;
+      frames_.push_back({static_cast<int>(v), static_cast<int>(t)});
+      std::vector<int>& pixels = object_pixels_[v][t];
+      for (int y = 0; y < f.mask.rows; ++y) {
+        const unsigned char* row = f.mask.ptr<unsigned char>(y);
+        for (int x = 0; x < f.mask.cols; ++x) {
+          if (row[x] == kMaskObject) pixels.push_back(y * f.mask.cols + x);
+        }
+      }
+    }
+  }
+  CHECK(!frames_.empty()) << "the dataset has no usable frame";
+}
+
+Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
+                        const SamplingConfig& sampling, const Model& model,
+                        const Eigen::AlignedBox3d& canonical_bounds, std::mt19937* rng) const {
+  const Video& video = dataset_.videos[v];
+  const Frame& f = video.frames[t];
+  Ray ray;
+  ray.video = v;
+  ray.frame = t;
+  ray.uv = Eigen::Vector2d(x + 0.5, y + 0.5);
+  const cv::Vec3b c = f.rgb.at<cv::Vec3b>(y, x);
+  ray.rgb = Eigen::Vector3d(c[0], c[1], c[2]) / 255.0;
+  const unsigned char m = f.mask.at<unsigned char>(y, x);
+  ray.mask = m == kMaskObject ? 1.0 : (m == kMaskBackground ? 0.0 : -1.0);
+  // Flow partner: a random configured gap and direction with data.
+  std::vector<int> gaps;
+  for (int g : sampling.flow_gaps) {
+    for (int dir : {1, -1}) {
+      const int partner = t + dir * g;
+      if (partner < 0 || partner >= static_cast<int>(video.frames.size())) continue;
+      if (video.frames[partner].skip || f.FlowForGap(dir * g) == nullptr) continue;
+      gaps.push_back(dir * g);
+    }
+  }
+  if (!gaps.empty()) {
+    const int gap = gaps[std::uniform_int_distribution<int>(0, gaps.size() - 1)(*rng)];
+    const FlowField* flow = f.FlowForGap(gap);
+    if (flow->valid.at<unsigned char>(y, x) != 0) {
+      const cv::Vec<cv::float16_t, 2> d = flow->flow.at<cv::Vec<cv::float16_t, 2>>(y, x);
+      ray.partner_frame = t + gap;
+      ray.has_flow = true;
+      ray.flow = Eigen::Vector2d(static_cast<float>(d[0]), static_cast<float>(d[1]));
+    }
+  }
+  if (!f.features.empty() && ray.mask > 0.5) {
+    const cv::float16_t* feat = f.features.ptr<cv::float16_t>(y) + kFeatureDim * x;
+    for (int k = 0; k < kFeatureDim; ++k) ray.feature[k] = static_cast<float>(feat[k]);
+    ray.has_feature = true;
+  }
+  double near, far;
+  NearFarPlanes(model.RootPose(v, t), canonical_bounds, sampling.near_far_margin, &near, &far);
+  const Eigen::Vector4d& k = model.video(v).intrinsics;
+  const double dir_norm =
+      Eigen::Vector3d((ray.uv[0] - k[2]) / k[0], (ray.uv[1] - k[3]) / k[1], 1.0).norm();
+  ray.samples = StratifiedSamples(samples_per_ray, near, far, dir_norm, true, rng);
+  return ray;
+}
+
+std::vector<Ray> RaySampler::Sample(int count, int samples_per_ray, const SamplingConfig& sampling,
+                                    const Model& model, const Eigen::AlignedBox3d& bounds,
+                                    std::mt19937* rng) const {
+  std::vector<Ray> rays;
+  rays.reserve(count);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const int active =
+      error_cache_.empty() ? 0 : static_cast<int>(std::round(sampling.active_fraction * count));
+  // Active rays: pixels next to cached large errors (error-proportional).
+  if (active > 0) {
+    std::vector<double> cumulative(error_cache_.size());
+    double total = 0.0;
+    for (size_t i = 0; i < error_cache_.size(); ++i) {
+      total += error_cache_[i].error;
+      cumulative[i] = total;
+    }
+    std::uniform_int_distribution<int> jitter(-1, 1);
+    for (int i = 0; i < active; ++i) {
+      const double u = unit(*rng) * total;
+      const size_t j = std::min<size_t>(
+          std::lower_bound(cumulative.begin(), cumulative.end(), u) - cumulative.begin(),
+          error_cache_.size() - 1);
+      const CachedPixel& p = error_cache_[j];
+      const Frame& f = dataset_.videos[p.video].frames[p.frame];
+      const int x = std::clamp(p.x + jitter(*rng), 0, f.mask.cols - 1);
+      const int y = std::clamp(p.y + jitter(*rng), 0, f.mask.rows - 1);
+      rays.push_back(
+          MakeRay(p.video, p.frame, x, y, samples_per_ray, sampling, model, bounds, rng));
+    }
+  }
+  std::uniform_int_distribution<int> pick_frame(0, static_cast<int>(frames_.size()) - 1);
+  while (static_cast<int>(rays.size()) < count) {
+    const FrameRef fr = frames_[pick_frame(*rng)];
+    const Frame& f = dataset_.videos[fr.video].frames[fr.frame];
+    const std::vector<int>& pixels = object_pixels_[fr.video][fr.frame];
+    int x, y;
+    if (!pixels.empty() && unit(*rng) < sampling.foreground_fraction) {
+      const int p = pixels[std::uniform_int_distribution<int>(0, pixels.size() - 1)(*rng)];
+      x = p % f.mask.cols;
+      y = p / f.mask.cols;
+    } else {
+      x = std::uniform_int_distribution<int>(0, f.mask.cols - 1)(*rng);
+      y = std::uniform_int_distribution<int>(0, f.mask.rows - 1)(*rng);
+    }
+    rays.push_back(
+        MakeRay(fr.video, fr.frame, x, y, samples_per_ray, sampling, model, bounds, rng));
+  }
+  return rays;
+}
+
+void RaySampler::RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors) {
+  CHECK_EQ(rays.size(), errors.size());
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Ray& r = rays[i];
+    error_cache_.push_back(
+        {r.video, r.frame, static_cast<int>(r.uv[0]), static_cast<int>(r.uv[1]), errors[i]});
+  }
+  // Keep the largest errors.
+  if (error_cache_.size() > kErrorCacheSize) {
+    std::nth_element(error_cache_.begin(), error_cache_.begin() + kErrorCacheSize,
+                     error_cache_.end(),
+                     [](const CachedPixel& a, const CachedPixel& b) { return a.error > b.error; });
+    error_cache_.resize(kErrorCacheSize);
+  }
+}
+
+}  // namespace banmo
