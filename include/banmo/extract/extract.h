@@ -1,0 +1,143 @@
+// Meshes from a BANMo model (DESIGN.md sections 3 and 6, issue 5
+// "Extraction"): the canonical surface (zero level set of the SDF MLP) by
+// marching cubes, its vertex colours, articulated per-frame meshes in each
+// frame's camera coordinates, and bones and skinning weights for inspection.
+//
+// Frames: the canonical (rest) space X*; a frame's root space (after the
+// forward warp with rest bones, bones.h); the camera of frame t of video v,
+//   x_in_camera = G^t * ForwardWarp(J^t, X*),  G^t = model.RootPose(v, t)
+// (camera_from_root, OpenCV axes), which is what `banmo eval` expects.
+//
+// Files written by WriteExtraction into OUT (docs/extract.md):
+//   canonical.ply              canonical mesh with vertex colours
+//   frames/video<VV>_frame<TTTTT>.ply
+//                              articulated mesh of frame T of video V in that
+//                              frame's camera coordinates, zero-padded so a
+//                              name sort is video-major, frame order
+//                              (`banmo eval --pred OUT/frames`)
+//   bones.ply                  one ellipsoid per rest bone (B > 0)
+//   skinning.ply               canonical mesh coloured by dominant bone (B > 0)
+//   skinning_weights.npy       float32 array (V, B): row i = skinning weights
+//                              of vertex i of canonical.ply (B > 0)
+//   extract.json               options, counts and timings
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "banmo/extract/marching_cubes.h"
+#include "banmo/geometry/mesh.h"
+#include "banmo/model/model.h"
+
+namespace banmo {
+
+// Which frames get an articulated mesh.
+struct FrameSelection {
+  // All frames of all videos (then `frames` is ignored).
+  bool all = true;
+  // (video, frame) pairs, in the order given.
+  std::vector<std::pair<int, int>> frames;
+};
+
+// Parses "all", "none", or a comma-separated list of items "V:T" (frame T of
+// video V), "V:T0-T1" (inclusive range) or "V:*" (every frame of video V).
+// Indices are checked against the model. Throws InputError naming `flag`.
+FrameSelection ParseFrameSelection(const std::string& text, const Model& model,
+                                   const std::string& flag = "--frames");
+
+struct ExtractOptions {
+  // Grid, level, capping at the bounds and batch size of the SDF sampling.
+  // resolution: 256 for final meshes, 64-128 for quick looks.
+  GridOptions grid = [] {
+    GridOptions g;
+    g.resolution = 256;
+    return g;
+  }();
+  // Keep only the connected component with the most faces (drops floaters).
+  bool keep_largest_component = true;
+  // Appearance code used for the vertex colours: that video's code, or the
+  // zero code when -1 or when the model has no such video (>= -1). Colours
+  // use the view direction (0, 0, 1) in canonical coordinates.
+  int color_video = 0;
+  // Frames written by WriteExtraction.
+  FrameSelection frames;
+  // Radii of the bone ellipsoids in Gaussian standard deviations (> 0).
+  double bone_ellipsoid_sigmas = 1.0;
+  // Subdivision level of the unit icosphere of each bone ellipsoid (0..4;
+  // 2 = 320 triangles per bone).
+  int bone_ellipsoid_subdivisions = 2;
+
+  // Throws InputError naming the field on a violated constraint.
+  void Check() const;
+};
+
+// Canonical surface of the model's SDF (marching cubes at the zero level,
+// largest component if asked) with vertex colours from the colour MLP.
+TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options);
+
+// The SDF MLP as a FieldBatchFunction (for MarchingCubes).
+FieldBatchFunction ModelSdfFunction(const Model& model);
+
+// Vertex colours (3 x V, uint8) of canonical points from the colour MLP, with
+// view direction (0, 0, 1) and the appearance code of `video` (zeros if -1
+// or out of range).
+Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> CanonicalColors(const Model& model,
+                                                               const Eigen::Matrix3Xd& points,
+                                                               int video);
+
+// The canonical mesh posed at frame `frame` of video `video`, in that frame's
+// camera coordinates (forward warp with rest bones, then G^t). Faces and
+// colours are those of `canonical`.
+TriangleMesh ArticulateMesh(const Model& model, const TriangleMesh& canonical, int video,
+                            int frame);
+
+// Skinning weights (B x V) of canonical points with the rest bones
+// (softmax of the Gaussian logits, deform/bones.h). Empty (0 x V) if B = 0.
+Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& points);
+
+// Colour of bone b in the fixed palette used by the inspection files.
+Eigen::Matrix<std::uint8_t, 3, 1> BonePaletteColor(int bone);
+
+// The canonical mesh recoloured by dominant bone (palette above).
+TriangleMesh ColorByDominantBone(const TriangleMesh& canonical, const Eigen::MatrixXd& weights);
+
+// One ellipsoid per rest bone (centre C_b, axes V_b, radii sigmas * exp(log_s)),
+// coloured with the palette, merged into one mesh. Empty if B = 0.
+TriangleMesh BoneEllipsoids(const Model& model, double sigmas, int subdivisions);
+
+// Summary of a WriteExtraction run.
+struct ExtractionSummary {
+  int canonical_vertices = 0;
+  int canonical_faces = 0;
+  int frames_written = 0;
+  double canonical_seconds = 0.0;   // marching cubes + component + colours
+  double articulate_seconds = 0.0;  // all frames, including writing
+};
+
+// Writes the files listed at the top of this header into out_dir (created if
+// missing). Every file is written atomically; the function throws InputError
+// (nothing written) if the level set is empty in the bounds.
+ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& options,
+                                  const std::string& out_dir);
+
+// Axis-aligned bounds of the model's surface from a coarse extraction
+// (resolution cells on the longest axis of `bounds`, largest component), for
+// the solver's canonical-bounds refresh. Returns an empty box if the level set
+// does not cross the grid.
+Eigen::AlignedBox3d SurfaceBounds(const Model& model, const Eigen::AlignedBox3d& bounds,
+                                  int resolution = 48);
+
+// B bone centres from a surface: area-weighted k-means of the vertices
+// (k-means++ seeding with `seed`, then Lloyd iterations until no assignment
+// changes or 50 iterations). A centre is the mean of its cluster's surface
+// points, so for a cluster that is a patch of a convex-ish part it lies
+// inside the shape. Requires a mesh with at least B vertices (B >= 1).
+// Deterministic in seed.
+std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, int num_bones,
+                                                    uint32_t seed);
+
+}  // namespace banmo

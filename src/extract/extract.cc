@@ -1,0 +1,531 @@
+#include "banmo/extract/extract.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <random>
+#include <sstream>
+
+#include "banmo/deform/bones.h"
+#include "banmo/geometry/mesh_io.h"
+#include "banmo/geometry/se3.h"
+#include "banmo/util/atomic_file.h"
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+#include "banmo/util/parallel.h"
+#include "banmo/util/timer.h"
+
+namespace banmo {
+namespace {
+
+// Points per colour-MLP call (bounds the cache memory, as the SDF batches).
+constexpr int kColorBatch = 16384;
+
+int Digits(int n) {
+  int d = 1;
+  while (n >= 10) {
+    n /= 10;
+    ++d;
+  }
+  return d;
+}
+
+// Parses a non-negative decimal integer; false on anything else.
+bool ParseIndex(const std::string& s, int* out) {
+  if (s.empty() || s.size() > 9) return false;
+  for (char c : s) {
+    if (c < '0' || c > '9') return false;
+  }
+  *out = std::stoi(s);
+  return true;
+}
+
+// .npy (format 1.0) of a row-major float32 matrix (rows x cols).
+std::string EncodeNpyFloat32(const std::vector<float>& data, int rows, int cols) {
+  std::ostringstream dict;
+  dict << "{'descr': '<f4', 'fortran_order': False, 'shape': (" << rows << ", " << cols << "), }";
+  std::string header = dict.str();
+  // Magic (6) + version (2) + length (2) + header, padded with spaces and a
+  // final newline to a multiple of 64 bytes.
+  const size_t unpadded = 10 + header.size() + 1;
+  header.append((64 - unpadded % 64) % 64, ' ');
+  header.push_back('\n');
+  std::string out("\x93NUMPY\x01\x00", 8);
+  const uint16_t len = static_cast<uint16_t>(header.size());
+  out.push_back(static_cast<char>(len & 0xff));
+  out.push_back(static_cast<char>(len >> 8));
+  out += header;
+  const size_t offset = out.size();
+  out.resize(offset + data.size() * sizeof(float));
+  std::memcpy(&out[offset], data.data(), data.size() * sizeof(float));  // little-endian host
+  return out;
+}
+
+// Unit icosphere, counter-clockwise seen from outside.
+TriangleMesh Icosphere(int subdivisions) {
+  const double p = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> v = {{-1, p, 0}, {1, p, 0}, {-1, -p, 0}, {1, -p, 0},
+                                    {0, -1, p}, {0, 1, p}, {0, -1, -p}, {0, 1, -p},
+                                    {p, 0, -1}, {p, 0, 1}, {-p, 0, -1}, {-p, 0, 1}};
+  for (auto& x : v) x.normalize();
+  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                    {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                    {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                    {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (int s = 0; s < subdivisions; ++s) {
+    std::map<std::pair<int, int>, int> midpoint;
+    auto mid = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = midpoint.find(key);
+      if (it != midpoint.end()) return it->second;
+      v.push_back((v[a] + v[b]).normalized());
+      const int id = static_cast<int>(v.size()) - 1;
+      midpoint.emplace(key, id);
+      return id;
+    };
+    std::vector<Eigen::Vector3i> g;
+    for (const auto& t : f) {
+      const int ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+      g.push_back({t[0], ab, ca});
+      g.push_back({t[1], bc, ab});
+      g.push_back({t[2], ca, bc});
+      g.push_back({ab, bc, ca});
+    }
+    f.swap(g);
+  }
+  TriangleMesh mesh;
+  mesh.vertices.resize(3, static_cast<Eigen::Index>(v.size()));
+  for (size_t i = 0; i < v.size(); ++i) mesh.vertices.col(i) = v[i];
+  mesh.faces.resize(3, static_cast<Eigen::Index>(f.size()));
+  for (size_t i = 0; i < f.size(); ++i) {
+    Eigen::Vector3i t = f[i];
+    const Eigen::Vector3d n = (v[t[1]] - v[t[0]]).cross(v[t[2]] - v[t[0]]);
+    if (n.dot(v[t[0]] + v[t[1]] + v[t[2]]) < 0) std::swap(t[1], t[2]);
+    mesh.faces.col(i) = t;
+  }
+  return mesh;
+}
+
+void CheckFrame(const Model& model, int video, int frame, const char* what) {
+  if (video < 0 || video >= model.num_videos()) {
+    ThrowInputError(what, ": video ", video, " out of range (the model has ", model.num_videos(),
+                    " videos)");
+  }
+  const int n = static_cast<int>(model.video(video).frames.size());
+  if (frame < 0 || frame >= n) {
+    ThrowInputError(what, ": frame ", frame, " of video ", video, " out of range (", n, " frames)");
+  }
+}
+
+}  // namespace
+
+void ExtractOptions::Check() const {
+  grid.Check("extract.grid");
+  if (color_video < -1) ThrowInputError("extract.color_video: expected >= -1, got ", color_video);
+  if (!(bone_ellipsoid_sigmas > 0) || !std::isfinite(bone_ellipsoid_sigmas)) {
+    ThrowInputError("extract.bone_ellipsoid_sigmas: expected a finite value > 0");
+  }
+  if (bone_ellipsoid_subdivisions < 0 || bone_ellipsoid_subdivisions > 4) {
+    ThrowInputError("extract.bone_ellipsoid_subdivisions: expected 0..4, got ",
+                    bone_ellipsoid_subdivisions);
+  }
+}
+
+FrameSelection ParseFrameSelection(const std::string& text, const Model& model,
+                                   const std::string& flag) {
+  FrameSelection sel;
+  if (text == "all") return sel;
+  sel.all = false;
+  if (text == "none") return sel;
+  // Items separated by commas; empty items (",,", a trailing comma) are errors.
+  std::vector<std::string> items(1);
+  for (char c : text) {
+    if (c == ',') {
+      items.emplace_back();
+    } else {
+      items.back().push_back(c);
+    }
+  }
+  std::string item;
+  auto bad = [&](const std::string& why) {
+    ThrowInputError(flag, " '", text, "': item '", item, "' ", why,
+                    " (expected all, none, or a comma-separated list of V:T, V:T0-T1, V:*)");
+  };
+  for (const std::string& it : items) {
+    item = it;
+    if (item.empty()) bad("is empty");
+    const size_t colon = item.find(':');
+    if (colon == std::string::npos) bad("has no ':'");
+    int v = 0;
+    if (!ParseIndex(item.substr(0, colon), &v)) bad("has no valid video index");
+    if (v >= model.num_videos()) {
+      bad("names video " + std::to_string(v) + " but the model has " +
+          std::to_string(model.num_videos()) + " videos");
+    }
+    const int n = static_cast<int>(model.video(v).frames.size());
+    const std::string rest = item.substr(colon + 1);
+    int t0 = 0, t1 = 0;
+    if (rest == "*") {
+      t0 = 0;
+      t1 = n - 1;
+    } else if (const size_t dash = rest.find('-'); dash != std::string::npos) {
+      if (!ParseIndex(rest.substr(0, dash), &t0) || !ParseIndex(rest.substr(dash + 1), &t1) ||
+          t1 < t0) {
+        bad("has no valid frame range");
+      }
+    } else {
+      if (!ParseIndex(rest, &t0)) bad("has no valid frame index");
+      t1 = t0;
+    }
+    if (t1 >= n) {
+      bad("names frame " + std::to_string(t1) + " but video " + std::to_string(v) + " has " +
+          std::to_string(n) + " frames");
+    }
+    for (int t = t0; t <= t1; ++t) sel.frames.emplace_back(v, t);
+  }
+  if (sel.frames.empty()) bad("selects no frame");
+  return sel;
+}
+
+FieldBatchFunction ModelSdfFunction(const Model& model) {
+  auto batch = std::make_shared<FieldBatch>();
+  return [&model, batch](const Eigen::Matrix3Xd& points, Eigen::VectorXd* values) {
+    batch->x = points;
+    model.field().ForwardSdfBatch(model.sdf(), batch.get(), /*sdf_gradient=*/false);
+    *values = batch->sdf;
+  };
+}
+
+Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> CanonicalColors(const Model& model,
+                                                               const Eigen::Matrix3Xd& points,
+                                                               int video) {
+  const CanonicalField& field = model.field();
+  const int n = static_cast<int>(points.cols());
+  const int A = field.AppearanceCodeDim();
+  Eigen::VectorXd code = Eigen::VectorXd::Zero(A);
+  if (video >= 0 && video < model.num_videos() && A > 0) {
+    code = Eigen::Map<const Eigen::VectorXd>(model.video(video).appearance.data(), A);
+  }
+  Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> colors(3, n);
+  FieldBatch batch;
+  for (int begin = 0; begin < n; begin += kColorBatch) {
+    const int m = std::min(kColorBatch, n - begin);
+    batch.x = points.middleCols(begin, m);
+    if (field.options().use_view_direction) {
+      batch.view_dir = Eigen::Vector3d::UnitZ().replicate(1, m);
+    }
+    if (A > 0) batch.appearance = code.replicate(1, m);
+    field.ForwardBatch(model.sdf(), model.color(), &batch, /*input_jacobians=*/false);
+    for (int j = 0; j < m; ++j) {
+      for (int c = 0; c < 3; ++c) {
+        const double value = std::clamp(batch.rgb(c, j), 0.0, 1.0);
+        colors(c, begin + j) = static_cast<std::uint8_t>(std::lround(255.0 * value));
+      }
+    }
+  }
+  return colors;
+}
+
+TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options) {
+  options.Check();
+  TriangleMesh mesh = MarchingCubes(ModelSdfFunction(model), options.grid);
+  if (options.keep_largest_component) mesh = KeepLargestComponent(mesh);
+  if (mesh.NumVertices() > 0)
+    mesh.colors = CanonicalColors(model, mesh.vertices, options.color_video);
+  return mesh;
+}
+
+TriangleMesh ArticulateMesh(const Model& model, const TriangleMesh& canonical, int video,
+                            int frame) {
+  CheckFrame(model, video, frame, "ArticulateMesh");
+  const FrameParameters& f = model.frame(video, frame);
+  const Pose camera_from_root = model.RootPose(video, frame);
+  const int B = model.num_bones();
+  CHECK_EQ(static_cast<int>(f.bones_t.size()), kPoseSize * B);
+  TriangleMesh posed = canonical;
+  ParallelFor(canonical.NumVertices(), [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      const double* x_canonical = canonical.vertices.col(i).data();
+      double x_in_root[3];
+      ForwardWarp(B, model.bones(), f.bones_t.data(), x_canonical, x_in_root);
+      PoseTransformPoint(camera_from_root.data(), x_in_root, posed.vertices.col(i).data());
+    }
+  });
+  return posed;
+}
+
+Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& points) {
+  const int B = model.num_bones();
+  const int n = static_cast<int>(points.cols());
+  Eigen::MatrixXd weights(B, n);
+  if (B == 0) return weights;
+  ParallelFor(n, [&](int begin, int end) {
+    std::vector<double> logits(B);
+    for (int i = begin; i < end; ++i) {
+      for (int b = 0; b < B; ++b) {
+        logits[b] = BoneLogit(model.bones() + kBoneSize * b, points.col(i).data());
+      }
+      SkinningWeights(B, logits.data(), weights.col(i).data());
+    }
+  });
+  return weights;
+}
+
+Eigen::Matrix<std::uint8_t, 3, 1> BonePaletteColor(int bone) {
+  // Twelve well-separated colours, then golden-ratio hues.
+  static const std::uint8_t kPalette[12][3] = {{230, 25, 75},  {60, 180, 75},  {0, 130, 200},
+                                               {245, 130, 48}, {145, 30, 180}, {70, 240, 240},
+                                               {240, 50, 230}, {210, 245, 60}, {250, 190, 212},
+                                               {0, 128, 128},  {170, 110, 40}, {128, 0, 0}};
+  Eigen::Matrix<std::uint8_t, 3, 1> out;
+  if (bone >= 0 && bone < 12) {
+    out << kPalette[bone][0], kPalette[bone][1], kPalette[bone][2];
+    return out;
+  }
+  const double hue = std::fmod(0.61803398875 * bone, 1.0) * 6.0;
+  const int sector = static_cast<int>(hue) % 6;
+  const double frac = hue - std::floor(hue);
+  const double s = 0.75, v = 0.9;
+  const double p = v * (1 - s), q = v * (1 - s * frac), t = v * (1 - s * (1 - frac));
+  const double rgb[6][3] = {{v, t, p}, {q, v, p}, {p, v, t}, {p, q, v}, {t, p, v}, {v, p, q}};
+  for (int c = 0; c < 3; ++c) out[c] = static_cast<std::uint8_t>(std::lround(255 * rgb[sector][c]));
+  return out;
+}
+
+TriangleMesh ColorByDominantBone(const TriangleMesh& canonical, const Eigen::MatrixXd& weights) {
+  CHECK_EQ(weights.cols(), canonical.NumVertices());
+  TriangleMesh out = canonical;
+  out.colors.resize(3, canonical.NumVertices());
+  for (int i = 0; i < canonical.NumVertices(); ++i) {
+    Eigen::Index b = 0;
+    if (weights.rows() > 0) weights.col(i).maxCoeff(&b);
+    out.colors.col(i) = BonePaletteColor(static_cast<int>(b));
+  }
+  return out;
+}
+
+TriangleMesh BoneEllipsoids(const Model& model, double sigmas, int subdivisions) {
+  const int B = model.num_bones();
+  TriangleMesh out;
+  if (B == 0) return out;
+  const TriangleMesh sphere = Icosphere(subdivisions);
+  const int nv = sphere.NumVertices(), nf = sphere.NumFaces();
+  out.vertices.resize(3, nv * B);
+  out.faces.resize(3, nf * B);
+  out.colors.resize(3, nv * B);
+  for (int b = 0; b < B; ++b) {
+    const double* bone = model.bones() + kBoneSize * b;
+    for (int i = 0; i < nv; ++i) {
+      double local[3];
+      for (int k = 0; k < 3; ++k) {
+        local[k] = sigmas * std::exp(bone[kBoneLogScale + k]) * sphere.vertices(k, i);
+      }
+      double rotated[3];
+      ceres::QuaternionRotatePoint(bone + kBoneQw, local, rotated);
+      for (int k = 0; k < 3; ++k) out.vertices(k, b * nv + i) = bone[kBoneCenter + k] + rotated[k];
+      out.colors.col(b * nv + i) = BonePaletteColor(b);
+    }
+    // Positive scales and a rotation keep the orientation of the faces.
+    out.faces.middleCols(b * nf, nf) = sphere.faces.array() + b * nv;
+  }
+  return out;
+}
+
+ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& options,
+                                  const std::string& out_dir) {
+  options.Check();
+  std::vector<std::pair<int, int>> frames;
+  if (options.frames.all) {
+    for (int v = 0; v < model.num_videos(); ++v) {
+      for (int t = 0; t < static_cast<int>(model.video(v).frames.size()); ++t) {
+        frames.emplace_back(v, t);
+      }
+    }
+  } else {
+    frames = options.frames.frames;
+    for (const auto& [v, t] : frames) CheckFrame(model, v, t, "extract.frames");
+  }
+
+  ExtractionSummary summary;
+  Timer timer;
+  const TriangleMesh canonical = ExtractCanonicalMesh(model, options);
+  summary.canonical_seconds = timer.Seconds();
+  if (canonical.NumFaces() == 0) {
+    const GridOptions& g = options.grid;
+    ThrowInputError("extract: the SDF has no zero crossing inside the bounds [",
+                    g.bounds_min.transpose(), "] - [", g.bounds_max.transpose(), "] at resolution ",
+                    g.resolution, "; nothing written to ", out_dir);
+  }
+  summary.canonical_vertices = canonical.NumVertices();
+  summary.canonical_faces = canonical.NumFaces();
+
+  namespace fs = std::filesystem;
+  MakeDirectories(out_dir);
+  const fs::path out(out_dir);
+  WritePly((out / "canonical.ply").string(), canonical);
+
+  const int B = model.num_bones();
+  if (B > 0) {
+    const Eigen::MatrixXd weights = SkinningWeightsAt(model, canonical.vertices);
+    WritePly((out / "skinning.ply").string(), ColorByDominantBone(canonical, weights));
+    WritePly((out / "bones.ply").string(), BoneEllipsoids(model, options.bone_ellipsoid_sigmas,
+                                                          options.bone_ellipsoid_subdivisions));
+    std::vector<float> data(static_cast<size_t>(weights.size()));
+    for (int i = 0; i < canonical.NumVertices(); ++i) {
+      for (int b = 0; b < B; ++b)
+        data[static_cast<size_t>(i) * B + b] = static_cast<float>(weights(b, i));
+    }
+    WriteFileAtomic((out / "skinning_weights.npy").string(),
+                    EncodeNpyFloat32(data, canonical.NumVertices(), B));
+  }
+
+  timer.Reset();
+  if (!frames.empty()) {
+    const fs::path frame_dir = out / "frames";
+    MakeDirectories(frame_dir.string());
+    int max_frames = 1;
+    for (int v = 0; v < model.num_videos(); ++v) {
+      max_frames = std::max(max_frames, static_cast<int>(model.video(v).frames.size()));
+    }
+    const int vw = std::max(2, Digits(std::max(0, model.num_videos() - 1)));
+    const int tw = std::max(5, Digits(max_frames - 1));
+    for (const auto& [v, t] : frames) {
+      char name[64];
+      std::snprintf(name, sizeof(name), "video%0*d_frame%0*d.ply", vw, v, tw, t);
+      WritePly((frame_dir / name).string(), ArticulateMesh(model, canonical, v, t));
+      ++summary.frames_written;
+    }
+  }
+  summary.articulate_seconds = timer.Seconds();
+
+  const GridShape shape = ComputeGridShape(options.grid);
+  std::ostringstream json;
+  json.precision(17);
+  json << "{\n"
+       << "  \"resolution\": " << options.grid.resolution << ",\n"
+       << "  \"cells\": [" << shape.cells.x() << ", " << shape.cells.y() << ", " << shape.cells.z()
+       << "],\n"
+       << "  \"bounds_min\": [" << options.grid.bounds_min.x() << ", "
+       << options.grid.bounds_min.y() << ", " << options.grid.bounds_min.z() << "],\n"
+       << "  \"bounds_max\": [" << options.grid.bounds_max.x() << ", "
+       << options.grid.bounds_max.y() << ", " << options.grid.bounds_max.z() << "],\n"
+       << "  \"iso_level\": " << options.grid.iso_level << ",\n"
+       << "  \"close_at_bounds\": " << (options.grid.close_at_bounds ? "true" : "false") << ",\n"
+       << "  \"keep_largest_component\": " << (options.keep_largest_component ? "true" : "false")
+       << ",\n"
+       << "  \"color_video\": " << options.color_video << ",\n"
+       << "  \"num_bones\": " << B << ",\n"
+       << "  \"canonical_vertices\": " << summary.canonical_vertices << ",\n"
+       << "  \"canonical_faces\": " << summary.canonical_faces << ",\n"
+       << "  \"frames_written\": " << summary.frames_written << ",\n"
+       << "  \"canonical_seconds\": " << summary.canonical_seconds << ",\n"
+       << "  \"articulate_seconds\": " << summary.articulate_seconds << "\n"
+       << "}\n";
+  WriteFileAtomic((out / "extract.json").string(), json.str());
+  return summary;
+}
+
+Eigen::AlignedBox3d SurfaceBounds(const Model& model, const Eigen::AlignedBox3d& bounds,
+                                  int resolution) {
+  GridOptions grid;
+  grid.resolution = resolution;
+  grid.bounds_min = bounds.min();
+  grid.bounds_max = bounds.max();
+  const TriangleMesh mesh = KeepLargestComponent(MarchingCubes(ModelSdfFunction(model), grid));
+  Eigen::AlignedBox3d box;  // empty
+  for (int i = 0; i < mesh.NumVertices(); ++i) box.extend(Eigen::Vector3d(mesh.vertices.col(i)));
+  return box;
+}
+
+std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, int num_bones,
+                                                    uint32_t seed) {
+  CHECK_GE(num_bones, 1);
+  const int V = mesh.NumVertices();
+  if (V < num_bones) {
+    ThrowInputError("bone initialisation: the surface has ", V, " vertices, fewer than the ",
+                    num_bones, " bones");
+  }
+  // Vertex weights: a third of the area of the incident faces (uniform if
+  // the mesh has no area), so the clustering does not depend on the
+  // tessellation density.
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(V);
+  for (int f = 0; f < mesh.NumFaces(); ++f) {
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.faces(0, f));
+    const Eigen::Vector3d b = mesh.vertices.col(mesh.faces(1, f));
+    const Eigen::Vector3d c = mesh.vertices.col(mesh.faces(2, f));
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    for (int k = 0; k < 3; ++k) w[mesh.faces(k, f)] += area / 3.0;
+  }
+  if (!(w.sum() > 0)) w.setOnes();
+
+  std::mt19937 rng(seed);
+  // Draws an index with probability proportional to p (own sampler: the
+  // standard distributions differ between library implementations).
+  auto draw = [&](const Eigen::VectorXd& p) {
+    const double total = p.sum();
+    const double u = (static_cast<double>(rng()) + 0.5) / 4294967296.0 * total;
+    double acc = 0.0;
+    for (int i = 0; i < V; ++i) {
+      acc += p[i];
+      if (u < acc) return i;
+    }
+    for (int i = V - 1; i >= 0; --i) {
+      if (p[i] > 0) return i;
+    }
+    return V - 1;
+  };
+
+  // k-means++ seeding.
+  std::vector<Eigen::Vector3d> centres;
+  centres.push_back(mesh.vertices.col(draw(w)));
+  Eigen::VectorXd d2(V);
+  for (int i = 0; i < V; ++i) d2[i] = (mesh.vertices.col(i) - centres[0]).squaredNorm();
+  while (static_cast<int>(centres.size()) < num_bones) {
+    const Eigen::VectorXd p = w.cwiseProduct(d2);
+    const int pick = p.sum() > 0 ? draw(p) : draw(w);
+    centres.push_back(mesh.vertices.col(pick));
+    for (int i = 0; i < V; ++i) {
+      d2[i] = std::min(d2[i], (mesh.vertices.col(i) - centres.back()).squaredNorm());
+    }
+  }
+
+  // Lloyd iterations.
+  std::vector<int> label(V, -1);
+  for (int iter = 0; iter < 50; ++iter) {
+    std::vector<char> changed_chunk(V, 0);
+    ParallelFor(V, [&](int begin, int end) {
+      for (int i = begin; i < end; ++i) {
+        int best = 0;
+        double best_d = std::numeric_limits<double>::infinity();
+        for (int b = 0; b < num_bones; ++b) {
+          const double d = (mesh.vertices.col(i) - centres[b]).squaredNorm();
+          if (d < best_d) {
+            best_d = d;
+            best = b;
+          }
+        }
+        if (best != label[i]) changed_chunk[i] = 1;
+        label[i] = best;
+      }
+    });
+    const bool changed =
+        std::any_of(changed_chunk.begin(), changed_chunk.end(), [](char c) { return c != 0; });
+    if (!changed) break;
+    std::vector<Eigen::Vector3d> sum(num_bones, Eigen::Vector3d::Zero());
+    std::vector<double> mass(num_bones, 0.0);
+    for (int i = 0; i < V; ++i) {
+      sum[label[i]] += w[i] * mesh.vertices.col(i);
+      mass[label[i]] += w[i];
+    }
+    for (int b = 0; b < num_bones; ++b) {
+      if (mass[b] > 0) centres[b] = sum[b] / mass[b];  // an empty cluster keeps its centre
+    }
+  }
+  return centres;
+}
+
+}  // namespace banmo

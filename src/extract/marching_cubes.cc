@@ -1,0 +1,386 @@
+#include "banmo/extract/marching_cubes.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+#include <unordered_map>
+
+#include "banmo/util/error.h"
+#include "banmo/util/logging.h"
+
+namespace banmo {
+namespace {
+
+// Cell corners: index c = x + 2 y + 4 z with x, y, z in {0, 1}.
+// Cell edges: id = 4 * axis + b, where the two other axes (in increasing
+// order) take the bits b & 1 and b >> 1; the edge runs from the corner with
+// that axis bit 0 to the corner with it 1.
+constexpr int kNumEdges = 12;
+
+struct EdgeCorners {
+  int a, b;
+};
+
+EdgeCorners CornersOfEdge(int edge) {
+  const int axis = edge / 4;
+  const int bits = edge % 4;
+  const int o0 = axis == 0 ? 1 : 0;
+  const int o1 = axis == 2 ? 1 : 2;
+  const int a = ((bits & 1) << o0) | ((bits >> 1) << o1);
+  return {a, a | (1 << axis)};
+}
+
+// Triangles (as cell-edge ids, counter-clockwise seen from outside) of each
+// of the 256 inside/outside configurations (bit c set = corner c inside).
+struct CaseTable {
+  std::array<std::vector<std::array<int, 3>>, 256> triangles;
+};
+
+CaseTable BuildCaseTable() {
+  int edge_of[8][8];
+  for (auto& row : edge_of) std::fill(row, row + 8, -1);
+  for (int e = 0; e < kNumEdges; ++e) {
+    const EdgeCorners ec = CornersOfEdge(e);
+    edge_of[ec.a][ec.b] = edge_of[ec.b][ec.a] = e;
+  }
+  // The six faces, corners counter-clockwise about the outward normal:
+  // (u, v) = (axis + 1, axis + 2) mod 3 is right-handed about +axis.
+  std::array<std::array<int, 4>, 6> faces;
+  for (int axis = 0; axis < 3; ++axis) {
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    for (int side = 0; side < 2; ++side) {
+      const int base = side << axis;
+      std::array<int, 4> ccw = {base, base | (1 << u), base | (1 << u) | (1 << v), base | (1 << v)};
+      if (side == 0) std::swap(ccw[1], ccw[3]);  // normal -axis: reverse the cycle
+      faces[2 * axis + side] = ccw;
+    }
+  }
+  // Faces (bit f) containing each edge.
+  std::array<int, kNumEdges> edge_faces{};
+  for (int f = 0; f < 6; ++f) {
+    for (int i = 0; i < 4; ++i) {
+      edge_faces[edge_of[faces[f][i]][faces[f][(i + 1) % 4]]] |= 1 << f;
+    }
+  }
+  CaseTable table;
+  for (int config = 0; config < 256; ++config) {
+    std::array<int, kNumEdges> next;
+    next.fill(-1);
+    std::array<int, kNumEdges> num_in{};
+    for (const auto& f : faces) {
+      bool inside[4];
+      for (int i = 0; i < 4; ++i) inside[i] = (config >> f[i]) & 1;
+      // Each run of inside corners along the face cycle (an isolated corner
+      // on an ambiguous face is its own run) gets one segment, from the edge
+      // entering the run to the edge leaving it. With the cycle
+      // counter-clockwise about the outward normal, this orients the loops so
+      // that their fans face the outside (verified by the tests).
+      for (int i = 0; i < 4; ++i) {
+        if (inside[i] || !inside[(i + 1) % 4]) continue;
+        const int enter = edge_of[f[i]][f[(i + 1) % 4]];
+        int j = (i + 1) % 4;
+        while (inside[(j + 1) % 4]) j = (j + 1) % 4;
+        const int leave = edge_of[f[j]][f[(j + 1) % 4]];
+        CHECK_EQ(next[enter], -1) << "config " << config;
+        next[enter] = leave;
+        ++num_in[leave];
+      }
+    }
+    std::array<bool, kNumEdges> used{};
+    for (int e = 0; e < kNumEdges; ++e) {
+      const EdgeCorners ec = CornersOfEdge(e);
+      const bool cut = ((config >> ec.a) & 1) != ((config >> ec.b) & 1);
+      CHECK_EQ(cut, next[e] >= 0) << "config " << config << " edge " << e;
+      CHECK_EQ(cut ? 1 : 0, num_in[e]) << "config " << config << " edge " << e;
+      if (!cut || used[e]) continue;
+      std::vector<int> loop;
+      for (int x = e; !used[x]; x = next[x]) {
+        used[x] = true;
+        loop.push_back(x);
+      }
+      CHECK_GE(loop.size(), 3u);
+      // Fan from an apex whose diagonals never join two vertices of one cell
+      // face: such a diagonal would lie in that face, and the neighbour cell
+      // could use the same vertex pair, giving an edge of four triangles.
+      const int m = static_cast<int>(loop.size());
+      int apex = -1;
+      for (int r = 0; r < m && apex < 0; ++r) {
+        bool ok = true;
+        for (int i = 2; i + 1 < m && ok; ++i) {
+          ok = (edge_faces[loop[r]] & edge_faces[loop[(r + i) % m]]) == 0;
+        }
+        if (ok) apex = r;
+      }
+      CHECK_GE(apex, 0) << "config " << config << ": no valid fan apex";
+      for (int i = 1; i + 1 < m; ++i) {
+        table.triangles[config].push_back(
+            {loop[apex], loop[(apex + i) % m], loop[(apex + i + 1) % m]});
+      }
+    }
+  }
+  return table;
+}
+
+const CaseTable& GetCaseTable() {
+  static const CaseTable table = BuildCaseTable();
+  return table;
+}
+
+// Grid-edge vertex ids of one z-level of nodes: x-edges (cx * ny1) and
+// y-edges (nx1 * cy); -1 where the edge is not cut.
+struct LevelEdges {
+  std::vector<int> x, y;
+};
+
+}  // namespace
+
+void GridOptions::Check(const char* prefix) const {
+  if (resolution < 2 || resolution > 4096) {
+    ThrowInputError(prefix, ".resolution: expected 2..4096, got ", resolution);
+  }
+  if (!bounds_min.allFinite() || !bounds_max.allFinite() ||
+      !(bounds_max.array() > bounds_min.array()).all()) {
+    ThrowInputError(prefix,
+                    ".bounds: expected finite bounds with max > min on every axis, got min (",
+                    bounds_min.transpose(), ") max (", bounds_max.transpose(), ")");
+  }
+  if (!std::isfinite(iso_level)) ThrowInputError(prefix, ".iso_level: expected a finite value");
+  if (max_batch_points < 1) {
+    ThrowInputError(prefix, ".max_batch_points: expected >= 1, got ", max_batch_points);
+  }
+}
+
+GridShape ComputeGridShape(const GridOptions& options) {
+  const Eigen::Vector3d extent = options.bounds_max - options.bounds_min;
+  const double h = extent.maxCoeff() / options.resolution;
+  GridShape shape;
+  for (int a = 0; a < 3; ++a) {
+    shape.cells[a] = std::max(1, static_cast<int>(std::lround(extent[a] / h)));
+    shape.spacing[a] = extent[a] / shape.cells[a];
+  }
+  return shape;
+}
+
+TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& options) {
+  options.Check();
+  const CaseTable& table = GetCaseTable();
+  const GridShape shape = ComputeGridShape(options);
+  const int cx = shape.cells.x(), cy = shape.cells.y(), cz = shape.cells.z();
+  const int nx1 = cx + 1, ny1 = cy + 1;
+  const double iso = options.iso_level;
+  const double outside_value = iso + shape.spacing.minCoeff();
+  const Eigen::Vector3d& origin = options.bounds_min;
+  auto node_position = [&](int i, int j, int k) {
+    return Eigen::Vector3d(origin.x() + i * shape.spacing.x(), origin.y() + j * shape.spacing.y(),
+                           origin.z() + k * shape.spacing.z());
+  };
+
+  // Field values of z-level k (nx1 * ny1, index j * nx1 + i).
+  std::vector<int> query_index;
+  Eigen::Matrix3Xd points;
+  Eigen::VectorXd values;
+  auto evaluate_level = [&](int k, std::vector<double>* level) {
+    level->assign(static_cast<size_t>(nx1) * ny1, outside_value);
+    const bool pad = options.close_at_bounds;
+    if (pad && (k == 0 || k == cz)) return;
+    query_index.clear();
+    for (int j = 0; j < ny1; ++j) {
+      for (int i = 0; i < nx1; ++i) {
+        if (pad && (i == 0 || j == 0 || i == cx || j == cy)) continue;
+        query_index.push_back(j * nx1 + i);
+      }
+    }
+    const int n = static_cast<int>(query_index.size());
+    const int num_chunks = (n + options.max_batch_points - 1) / options.max_batch_points;
+    const int chunk = num_chunks == 0 ? 0 : (n + num_chunks - 1) / num_chunks;
+    for (int begin = 0; begin < n; begin += chunk) {
+      const int end = std::min(n, begin + chunk);
+      points.resize(3, end - begin);
+      for (int q = begin; q < end; ++q) {
+        const int idx = query_index[q];
+        points.col(q - begin) = node_position(idx % nx1, idx / nx1, k);
+      }
+      values.resize(0);
+      field(points, &values);
+      CHECK_EQ(values.size(), end - begin) << "field callback returned the wrong number of values";
+      for (int q = begin; q < end; ++q) {
+        const double f = values[q - begin];
+        if (!std::isfinite(f)) {
+          ThrowInputError("marching cubes: the field is not finite (", f, ") at point (",
+                          points.col(q - begin).transpose(), "); are the model parameters finite?");
+        }
+        (*level)[query_index[q]] = f;
+      }
+    }
+  };
+
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<Eigen::Vector3i> faces;
+  auto add_vertex = [&](const Eigen::Vector3d& pa, double fa, const Eigen::Vector3d& pb,
+                        double fb) {
+    // Cut edge: exactly one of fa, fb is < iso, so fb - fa != 0.
+    const double t = std::clamp((iso - fa) / (fb - fa), 0.0, 1.0);
+    vertices.push_back(pa + t * (pb - pa));
+    return static_cast<int>(vertices.size()) - 1;
+  };
+  auto level_edges = [&](int k, const std::vector<double>& f, LevelEdges* edges) {
+    edges->x.assign(static_cast<size_t>(cx) * ny1, -1);
+    edges->y.assign(static_cast<size_t>(nx1) * cy, -1);
+    for (int j = 0; j < ny1; ++j) {
+      for (int i = 0; i < cx; ++i) {
+        const double fa = f[j * nx1 + i], fb = f[j * nx1 + i + 1];
+        if ((fa < iso) != (fb < iso)) {
+          edges->x[j * cx + i] =
+              add_vertex(node_position(i, j, k), fa, node_position(i + 1, j, k), fb);
+        }
+      }
+    }
+    for (int j = 0; j < cy; ++j) {
+      for (int i = 0; i < nx1; ++i) {
+        const double fa = f[j * nx1 + i], fb = f[(j + 1) * nx1 + i];
+        if ((fa < iso) != (fb < iso)) {
+          edges->y[j * nx1 + i] =
+              add_vertex(node_position(i, j, k), fa, node_position(i, j + 1, k), fb);
+        }
+      }
+    }
+  };
+
+  std::vector<double> lo, hi;
+  LevelEdges lo_edges, hi_edges;
+  std::vector<int> z_edges;
+  evaluate_level(0, &lo);
+  level_edges(0, lo, &lo_edges);
+  for (int k = 0; k < cz; ++k) {
+    evaluate_level(k + 1, &hi);
+    level_edges(k + 1, hi, &hi_edges);
+    z_edges.assign(static_cast<size_t>(nx1) * ny1, -1);
+    for (int j = 0; j < ny1; ++j) {
+      for (int i = 0; i < nx1; ++i) {
+        const double fa = lo[j * nx1 + i], fb = hi[j * nx1 + i];
+        if ((fa < iso) != (fb < iso)) {
+          z_edges[j * nx1 + i] =
+              add_vertex(node_position(i, j, k), fa, node_position(i, j, k + 1), fb);
+        }
+      }
+    }
+    const std::vector<double>* level_values[2] = {&lo, &hi};
+    const LevelEdges* level_edge_ids[2] = {&lo_edges, &hi_edges};
+    for (int j = 0; j < cy; ++j) {
+      for (int i = 0; i < cx; ++i) {
+        int config = 0;
+        for (int c = 0; c < 8; ++c) {
+          const int x = c & 1, y = (c >> 1) & 1, z = c >> 2;
+          if ((*level_values[z])[(j + y) * nx1 + i + x] < iso) config |= 1 << c;
+        }
+        if (config == 0 || config == 255) continue;
+        auto vertex_of_edge = [&](int edge) {
+          const int axis = edge / 4, b0 = edge & 1, b1 = (edge >> 1) & 1;
+          if (axis == 0) return level_edge_ids[b1]->x[(j + b0) * cx + i];
+          if (axis == 1) return level_edge_ids[b1]->y[j * nx1 + i + b0];
+          return z_edges[(j + b1) * nx1 + i + b0];
+        };
+        for (const auto& tri : table.triangles[config]) {
+          Eigen::Vector3i face(vertex_of_edge(tri[0]), vertex_of_edge(tri[1]),
+                               vertex_of_edge(tri[2]));
+          DCHECK((face.array() >= 0).all());
+          faces.push_back(face);
+        }
+      }
+    }
+    std::swap(lo, hi);
+    std::swap(lo_edges, hi_edges);
+  }
+
+  TriangleMesh mesh;
+  mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices.size()));
+  for (size_t v = 0; v < vertices.size(); ++v) mesh.vertices.col(v) = vertices[v];
+  mesh.faces.resize(3, static_cast<Eigen::Index>(faces.size()));
+  for (size_t f = 0; f < faces.size(); ++f) mesh.faces.col(f) = faces[f];
+  return mesh;
+}
+
+TriangleMesh RemoveUnreferencedVertices(const TriangleMesh& mesh) {
+  std::vector<int> new_index(mesh.NumVertices(), -1);
+  for (int f = 0; f < mesh.NumFaces(); ++f) {
+    for (int k = 0; k < 3; ++k) new_index[mesh.faces(k, f)] = 0;
+  }
+  int count = 0;
+  for (int& idx : new_index) {
+    if (idx == 0) idx = count++;
+  }
+  TriangleMesh out;
+  out.vertices.resize(3, count);
+  if (mesh.HasColors()) out.colors.resize(3, count);
+  for (int v = 0; v < mesh.NumVertices(); ++v) {
+    if (new_index[v] < 0) continue;
+    out.vertices.col(new_index[v]) = mesh.vertices.col(v);
+    if (mesh.HasColors()) out.colors.col(new_index[v]) = mesh.colors.col(v);
+  }
+  out.faces.resize(3, mesh.NumFaces());
+  for (int f = 0; f < mesh.NumFaces(); ++f) {
+    for (int k = 0; k < 3; ++k) out.faces(k, f) = new_index[mesh.faces(k, f)];
+  }
+  return out;
+}
+
+MeshStats ComputeMeshStats(const TriangleMesh& mesh) {
+  MeshStats stats;
+  stats.num_faces = mesh.NumFaces();
+  // Directed edges keyed by (min, max) vertex; the direction flag says
+  // whether the face traverses it as min -> max.
+  struct HalfEdge {
+    int64_t key;
+    bool forward;
+    int face;
+  };
+  std::vector<HalfEdge> half_edges;
+  half_edges.reserve(3 * static_cast<size_t>(mesh.NumFaces()));
+  const int64_t V = mesh.NumVertices();
+  std::vector<bool> referenced(V, false);
+  for (int f = 0; f < mesh.NumFaces(); ++f) {
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.faces(0, f));
+    const Eigen::Vector3d b = mesh.vertices.col(mesh.faces(1, f));
+    const Eigen::Vector3d c = mesh.vertices.col(mesh.faces(2, f));
+    stats.signed_volume += a.dot(b.cross(c)) / 6.0;
+    stats.area += 0.5 * (b - a).cross(c - a).norm();
+    for (int k = 0; k < 3; ++k) {
+      const int u = mesh.faces(k, f), w = mesh.faces((k + 1) % 3, f);
+      referenced[u] = true;
+      half_edges.push_back({std::min<int64_t>(u, w) * V + std::max<int64_t>(u, w), u < w, f});
+    }
+  }
+  std::sort(half_edges.begin(), half_edges.end(), [](const HalfEdge& x, const HalfEdge& y) {
+    return x.key != y.key ? x.key < y.key : x.face < y.face;
+  });
+  // Union-find over faces through shared edges.
+  std::vector<int> parent(mesh.NumFaces());
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (size_t i = 0; i < half_edges.size();) {
+    size_t j = i;
+    int forward = 0;
+    while (j < half_edges.size() && half_edges[j].key == half_edges[i].key) {
+      forward += half_edges[j].forward ? 1 : 0;
+      const int r1 = find(half_edges[i].face), r2 = find(half_edges[j].face);
+      if (r1 != r2) parent[std::max(r1, r2)] = std::min(r1, r2);
+      ++j;
+    }
+    const int uses = static_cast<int>(j - i);
+    ++stats.num_edges;
+    if (uses == 1) ++stats.num_boundary_edges;
+    if (uses > 2) ++stats.num_nonmanifold_edges;
+    if (uses == 2 && forward != 1) ++stats.num_inconsistent_edges;
+    i = j;
+  }
+  for (int f = 0; f < mesh.NumFaces(); ++f) stats.num_components += find(f) == f ? 1 : 0;
+  stats.num_vertices = static_cast<int>(std::count(referenced.begin(), referenced.end(), true));
+  stats.euler_characteristic = stats.num_vertices - stats.num_edges + stats.num_faces;
+  return stats;
+}
+
+}  // namespace banmo
