@@ -230,9 +230,10 @@ Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> CanonicalColors(const Model& mode
   return colors;
 }
 
-TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options) {
+TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options,
+                                  MarchingCubesStats* stats) {
   options.Check();
-  TriangleMesh mesh = MarchingCubes(ModelSdfFunction(model), options.grid);
+  TriangleMesh mesh = MarchingCubes(ModelSdfFunction(model), options.grid, stats);
   if (options.keep_largest_component) mesh = KeepLargestComponent(mesh);
   if (mesh.NumVertices() > 0)
     mesh.colors = CanonicalColors(model, mesh.vertices, options.color_video);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <unordered_map>
 
@@ -133,6 +134,33 @@ struct LevelEdges {
   std::vector<int> x, y;
 };
 
+// The field at the columns of points, in batches of at most max_batch
+// points; throws InputError on a non-finite value.
+Eigen::VectorXd EvaluateField(const FieldBatchFunction& field, const Eigen::Matrix3Xd& points,
+                              int max_batch) {
+  const int n = static_cast<int>(points.cols());
+  Eigen::VectorXd out(n);
+  const int num_chunks = (n + max_batch - 1) / max_batch;
+  const int chunk = num_chunks == 0 ? 0 : (n + num_chunks - 1) / num_chunks;
+  Eigen::Matrix3Xd batch;
+  Eigen::VectorXd values;
+  for (int begin = 0; begin < n; begin += chunk) {
+    const int m = std::min(n - begin, chunk);
+    batch = points.middleCols(begin, m);
+    values.resize(0);
+    field(batch, &values);
+    CHECK_EQ(values.size(), m) << "field callback returned the wrong number of values";
+    for (int q = 0; q < m; ++q) {
+      if (!std::isfinite(values[q])) {
+        ThrowInputError("marching cubes: the field is not finite (", values[q], ") at point (",
+                        batch.col(q).transpose(), "); are the model parameters finite?");
+      }
+    }
+    out.segment(begin, m) = values;
+  }
+  return out;
+}
+
 }  // namespace
 
 void GridOptions::Check(const char* prefix) const {
@@ -146,6 +174,12 @@ void GridOptions::Check(const char* prefix) const {
                     bounds_min.transpose(), ") max (", bounds_max.transpose(), ")");
   }
   if (!std::isfinite(iso_level)) ThrowInputError(prefix, ".iso_level: expected a finite value");
+  if (coarse_stride < 1 || coarse_stride > 64) {
+    ThrowInputError(prefix, ".coarse_stride: expected 1..64, got ", coarse_stride);
+  }
+  if (!(band >= 0) || !std::isfinite(band)) {
+    ThrowInputError(prefix, ".band: expected a finite value >= 0, got ", band);
+  }
   if (max_batch_points < 1) {
     ThrowInputError(prefix, ".max_batch_points: expected >= 1, got ", max_batch_points);
   }
@@ -162,7 +196,8 @@ GridShape ComputeGridShape(const GridOptions& options) {
   return shape;
 }
 
-TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& options) {
+TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& options,
+                           MarchingCubesStats* stats) {
   options.Check();
   const CaseTable& table = GetCaseTable();
   const GridShape shape = ComputeGridShape(options);
@@ -171,48 +206,138 @@ TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& o
   const double iso = options.iso_level;
   const double outside_value = iso + shape.spacing.minCoeff();
   const Eigen::Vector3d& origin = options.bounds_min;
+  int64_t num_evaluated = 0;
   auto node_position = [&](int i, int j, int k) {
     return Eigen::Vector3d(origin.x() + i * shape.spacing.x(), origin.y() + j * shape.spacing.y(),
                            origin.z() + k * shape.spacing.z());
   };
 
+  const bool pad = options.close_at_bounds;
+  auto padded = [&](int i, int j, int k) {
+    return pad && (i == 0 || j == 0 || k == 0 || i == cx || j == cy || k == cz);
+  };
+
+  // Coarse pass (coarse_stride > 1): the field at every coarse_stride-th
+  // node per axis (plus the last node), and the blocks of the coarse grid
+  // that may hold the level set.
+  const int s = options.coarse_stride;
+  std::array<std::vector<int>, 3> coarse_nodes;  // fine indices of the coarse nodes per axis
+  for (int a = 0; a < 3; ++a) {
+    for (int i = 0; i < shape.cells[a]; i += s) coarse_nodes[a].push_back(i);
+    coarse_nodes[a].push_back(shape.cells[a]);
+  }
+  const int ncx = static_cast<int>(coarse_nodes[0].size());
+  const int ncy = static_cast<int>(coarse_nodes[1].size());
+  const int ncz = static_cast<int>(coarse_nodes[2].size());
+  std::vector<double> coarse;
+  std::vector<char> band;  // per block (ncx-1)(ncy-1)(ncz-1)
+  auto coarse_at = [&](int a, int b, int c) { return coarse[(c * ncy + b) * ncx + a]; };
+  if (s > 1) {
+    coarse.assign(static_cast<size_t>(ncx) * ncy * ncz, outside_value);
+    std::vector<std::array<int, 3>> query;
+    for (int c = 0; c < ncz; ++c) {
+      for (int b = 0; b < ncy; ++b) {
+        for (int a = 0; a < ncx; ++a) {
+          if (!padded(coarse_nodes[0][a], coarse_nodes[1][b], coarse_nodes[2][c])) {
+            query.push_back({a, b, c});
+          }
+        }
+      }
+    }
+    Eigen::Matrix3Xd coarse_points(3, static_cast<Eigen::Index>(query.size()));
+    for (size_t q = 0; q < query.size(); ++q) {
+      coarse_points.col(q) = node_position(
+          coarse_nodes[0][query[q][0]], coarse_nodes[1][query[q][1]], coarse_nodes[2][query[q][2]]);
+    }
+    const Eigen::VectorXd coarse_values =
+        EvaluateField(field, coarse_points, options.max_batch_points);
+    for (size_t q = 0; q < query.size(); ++q) {
+      coarse[(query[q][2] * ncy + query[q][1]) * ncx + query[q][0]] = coarse_values[q];
+    }
+    const double diagonal = s * shape.spacing.norm();
+    const double margin = options.band * diagonal;
+    band.assign(static_cast<size_t>(ncx - 1) * (ncy - 1) * (ncz - 1), 0);
+    for (int c = 0; c + 1 < ncz; ++c) {
+      for (int b = 0; b + 1 < ncy; ++b) {
+        for (int a = 0; a + 1 < ncx; ++a) {
+          int num_inside = 0;
+          double min_distance = std::numeric_limits<double>::infinity();
+          for (int corner = 0; corner < 8; ++corner) {
+            const int ca = a + (corner & 1), cb = b + ((corner >> 1) & 1), cc = c + (corner >> 2);
+            const double f = coarse_at(ca, cb, cc);
+            num_inside += f < iso ? 1 : 0;
+            // Padded corners hold a constant, not the field: only their sign
+            // counts (as for the fine padded nodes).
+            if (!padded(coarse_nodes[0][ca], coarse_nodes[1][cb], coarse_nodes[2][cc])) {
+              min_distance = std::min(min_distance, std::abs(f - iso));
+            }
+          }
+          band[(c * (ncy - 1) + b) * (ncx - 1) + a] =
+              (num_inside > 0 && num_inside < 8) || min_distance < margin;
+        }
+      }
+    }
+  }
+  // Block index along axis a of fine node i: the block starting at or
+  // before it (the last block for the last node), and whether i is also the
+  // end of the previous block.
+  auto block_of = [&](int a, int i) {
+    const int nb = static_cast<int>(coarse_nodes[a].size()) - 1;
+    return std::min(i / s, nb - 1);
+  };
+  // True when fine node (i, j, k) lies in some band block.
+  auto in_band = [&](int i, int j, int k) {
+    const int bi = block_of(0, i), bj = block_of(1, j), bk = block_of(2, k);
+    for (int dk = (k == coarse_nodes[2][bk] && bk > 0) ? -1 : 0; dk <= 0; ++dk) {
+      for (int dj = (j == coarse_nodes[1][bj] && bj > 0) ? -1 : 0; dj <= 0; ++dj) {
+        for (int di = (i == coarse_nodes[0][bi] && bi > 0) ? -1 : 0; di <= 0; ++di) {
+          if (band[((bk + dk) * (ncy - 1) + bj + dj) * (ncx - 1) + bi + di]) return true;
+        }
+      }
+    }
+    return false;
+  };
+  // Trilinear interpolation of the coarse values (for nodes outside the band
+  // only the sign matters; all corners of their blocks share it).
+  auto coarse_interpolate = [&](int i, int j, int k) {
+    const int bi = block_of(0, i), bj = block_of(1, j), bk = block_of(2, k);
+    const double u =
+        double(i - coarse_nodes[0][bi]) / (coarse_nodes[0][bi + 1] - coarse_nodes[0][bi]);
+    const double v =
+        double(j - coarse_nodes[1][bj]) / (coarse_nodes[1][bj + 1] - coarse_nodes[1][bj]);
+    const double w =
+        double(k - coarse_nodes[2][bk]) / (coarse_nodes[2][bk + 1] - coarse_nodes[2][bk]);
+    double f = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const int x = corner & 1, y = (corner >> 1) & 1, z = corner >> 2;
+      f += (x ? u : 1 - u) * (y ? v : 1 - v) * (z ? w : 1 - w) * coarse_at(bi + x, bj + y, bk + z);
+    }
+    return f;
+  };
+
   // Field values of z-level k (nx1 * ny1, index j * nx1 + i).
   std::vector<int> query_index;
   Eigen::Matrix3Xd points;
-  Eigen::VectorXd values;
   auto evaluate_level = [&](int k, std::vector<double>* level) {
     level->assign(static_cast<size_t>(nx1) * ny1, outside_value);
-    const bool pad = options.close_at_bounds;
-    if (pad && (k == 0 || k == cz)) return;
     query_index.clear();
     for (int j = 0; j < ny1; ++j) {
       for (int i = 0; i < nx1; ++i) {
-        if (pad && (i == 0 || j == 0 || i == cx || j == cy)) continue;
+        if (padded(i, j, k)) continue;
+        if (s > 1 && !in_band(i, j, k)) {
+          (*level)[j * nx1 + i] = coarse_interpolate(i, j, k);
+          continue;
+        }
         query_index.push_back(j * nx1 + i);
       }
     }
-    const int n = static_cast<int>(query_index.size());
-    const int num_chunks = (n + options.max_batch_points - 1) / options.max_batch_points;
-    const int chunk = num_chunks == 0 ? 0 : (n + num_chunks - 1) / num_chunks;
-    for (int begin = 0; begin < n; begin += chunk) {
-      const int end = std::min(n, begin + chunk);
-      points.resize(3, end - begin);
-      for (int q = begin; q < end; ++q) {
-        const int idx = query_index[q];
-        points.col(q - begin) = node_position(idx % nx1, idx / nx1, k);
-      }
-      values.resize(0);
-      field(points, &values);
-      CHECK_EQ(values.size(), end - begin) << "field callback returned the wrong number of values";
-      for (int q = begin; q < end; ++q) {
-        const double f = values[q - begin];
-        if (!std::isfinite(f)) {
-          ThrowInputError("marching cubes: the field is not finite (", f, ") at point (",
-                          points.col(q - begin).transpose(), "); are the model parameters finite?");
-        }
-        (*level)[query_index[q]] = f;
-      }
+    points.resize(3, static_cast<Eigen::Index>(query_index.size()));
+    for (size_t q = 0; q < query_index.size(); ++q) {
+      points.col(q) = node_position(query_index[q] % nx1, query_index[q] / nx1, k);
     }
+    const Eigen::VectorXd values = EvaluateField(field, points, options.max_batch_points);
+    for (size_t q = 0; q < query_index.size(); ++q) (*level)[query_index[q]] = values[q];
+    num_evaluated += static_cast<int64_t>(query_index.size());
   };
 
   std::vector<Eigen::Vector3d> vertices;
@@ -293,6 +418,10 @@ TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& o
     std::swap(lo_edges, hi_edges);
   }
 
+  if (stats != nullptr) {
+    stats->num_nodes = static_cast<int64_t>(nx1) * ny1 * (cz + 1);
+    stats->num_evaluated = num_evaluated + static_cast<int64_t>(coarse.size());
+  }
   TriangleMesh mesh;
   mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices.size()));
   for (size_t v = 0; v < vertices.size(); ++v) mesh.vertices.col(v) = vertices[v];

@@ -79,6 +79,22 @@ TEST(ExtractCanonicalMesh, InitialSphereIsClosedRoundAndOutward) {
   EXPECT_NEAR(WindingNumber(mesh, Eigen::Vector3d(0.9, 0, 0)), 0.0, 1e-9);
 }
 
+TEST(ExtractCanonicalMesh, CoarseToFineEqualsDenseOnTheMlp) {
+  const auto model = SphereModel();
+  ExtractOptions dense = Quick(64);
+  dense.grid.coarse_stride = 1;
+  ExtractOptions coarse = Quick(64);
+  coarse.grid.coarse_stride = 4;
+  const TriangleMesh a = ExtractCanonicalMesh(*model, dense);
+  const TriangleMesh b = ExtractCanonicalMesh(*model, coarse);
+  ASSERT_EQ(a.NumVertices(), b.NumVertices());
+  ASSERT_EQ(a.NumFaces(), b.NumFaces());
+  // The same nodes are evaluated, in batches of other sizes: equal up to
+  // rounding of the batched matrix products.
+  EXPECT_LT((a.vertices - b.vertices).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_TRUE((a.faces.array() == b.faces.array()).all());
+}
+
 TEST(ExtractCanonicalMesh, ColorsMatchTheColourMlp) {
   const auto model = SphereModel();
   ExtractOptions options = Quick(24);

@@ -77,7 +77,9 @@ struct ExtractOptions {
 
 // Canonical surface of the model's SDF (marching cubes at the zero level,
 // largest component if asked) with vertex colours from the colour MLP.
-TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options);
+// stats (optional): the marching-cubes evaluation counts.
+TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options,
+                                  MarchingCubesStats* stats = nullptr);
 
 // The SDF MLP as a FieldBatchFunction (for MarchingCubes).
 FieldBatchFunction ModelSdfFunction(const Model& model);

@@ -57,6 +57,19 @@ struct GridOptions {
   // closed: a shape leaving the box is capped within one cell of the box.
   // If false, such a surface has an open boundary at the box.
   bool close_at_bounds = true;
+  // Coarse-to-fine sampling: the field is first sampled at every
+  // coarse_stride-th node per axis; a block of coarse_stride^3 cells is
+  // sampled at full resolution only if its corners differ in sign or one of
+  // them is within band * (block diagonal) of iso_level; elsewhere the fine
+  // nodes take the coarse (trilinear) values, which have the corners' sign.
+  // The mesh is the same as with dense sampling for any field that is
+  // L-Lipschitz with L < 2 * band (every point of a block is within half a
+  // diagonal of a corner, so a block holding a level-set point has a corner
+  // closer than band * diagonal); an SDF has L = 1, a trained SDF MLP about 1
+  // (eikonal term). 1 = dense sampling, for any field.
+  int coarse_stride = 4;
+  // Band half-width in block diagonals (>= 0), see coarse_stride.
+  double band = 1.0;
   // Upper bound on the points per field call (>= 1): bounds the memory of
   // the MLP caches (about 5 KB per point for a width-64, 3-layer SDF MLP).
   int max_batch_points = 16384;
@@ -73,12 +86,20 @@ struct GridShape {
 };
 GridShape ComputeGridShape(const GridOptions& options);
 
+// Counts of one MarchingCubes call.
+struct MarchingCubesStats {
+  int64_t num_nodes = 0;      // fine grid nodes
+  int64_t num_evaluated = 0;  // field evaluations (coarse and fine)
+};
+
 // Marching cubes of `field` on the grid. The field is sampled one z-slice of
-// nodes at a time (two slices are kept in memory), so memory is
-// O(cells_x * cells_y) besides the output. Throws InputError if the field
-// returns a non-finite value (names the point). Returns an empty mesh when
-// the level set does not cross the grid.
-TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& options);
+// nodes at a time (two slices are kept in memory, plus the coarse grid), so
+// memory is O(cells_x * cells_y + cells^3 / coarse_stride^3) besides the
+// output. Throws InputError if the field returns a non-finite value (names
+// the point). Returns an empty mesh when the level set does not cross the
+// grid. stats (optional) receives the evaluation counts.
+TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& options,
+                           MarchingCubesStats* stats = nullptr);
 
 // Keeps the connected component (faces connected through shared edges) with
 // the most faces, and drops unreferenced vertices (colours follow their
