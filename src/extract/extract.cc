@@ -337,7 +337,8 @@ TriangleMesh BoneEllipsoids(const Model& model, double sigmas, int subdivisions)
 }
 
 ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& options,
-                                  const std::string& out_dir) {
+                                  const std::string& out_dir,
+                                  const std::function<void(int done, int total)>& progress) {
   options.Check();
   std::vector<std::pair<int, int>> frames;
   if (options.frames.all) {
@@ -384,6 +385,8 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
                     EncodeNpyFloat32(data, canonical.NumVertices(), B));
   }
 
+  const int num_frames = static_cast<int>(frames.size());
+  if (progress) progress(0, num_frames);
   timer.Reset();
   if (!frames.empty()) {
     const fs::path frame_dir = out / "frames";
@@ -399,6 +402,7 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
       std::snprintf(name, sizeof(name), "video%0*d_frame%0*d.ply", vw, v, tw, t);
       WritePly((frame_dir / name).string(), ArticulateMesh(model, canonical, v, t));
       ++summary.frames_written;
+      if (progress) progress(summary.frames_written, num_frames);
     }
   }
   summary.articulate_seconds = timer.Seconds();

@@ -25,6 +25,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -123,8 +124,11 @@ struct ExtractionSummary {
 // Writes the files listed at the top of this header into out_dir (created if
 // missing). Every file is written atomically; the function throws InputError
 // (nothing written) if the level set is empty in the bounds.
-ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& options,
-                                  const std::string& out_dir);
+// progress (optional) is called after the canonical mesh (done = 0) and
+// after each articulated frame with (frames done, frames selected).
+ExtractionSummary WriteExtraction(
+    const Model& model, const ExtractOptions& options, const std::string& out_dir,
+    const std::function<void(int done, int total)>& progress = nullptr);
 
 // Axis-aligned bounds of the model's surface from a coarse extraction
 // (resolution cells on the longest axis of `bounds`, largest component), for
