@@ -98,7 +98,9 @@ int RunExtract(int argc, char** argv) {
   std::fflush(stdout);
   Timer frame_timer;
   const ExtractionSummary s = WriteExtraction(*model, options, out_dir, [&](int done, int all) {
-    if (done == 0 || done == all || done % 25 == 0) {
+    if (done == 0) {
+      std::fprintf(stderr, "  canonical mesh done (%.1f s)\n", frame_timer.Seconds());
+    } else if (done == all || done % 25 == 0) {
       std::fprintf(stderr, "  posed frames %d/%d (%.1f s)\n", done, all, frame_timer.Seconds());
     }
   });

@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "banmo/deform/bones.h"
@@ -397,12 +398,27 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
     }
     const int vw = std::max(2, Digits(std::max(0, model.num_videos() - 1)));
     const int tw = std::max(5, Digits(max_frames - 1));
+    std::set<std::string> written;
     for (const auto& [v, t] : frames) {
       char name[64];
       std::snprintf(name, sizeof(name), "video%0*d_frame%0*d.ply", vw, v, tw, t);
       WritePly((frame_dir / name).string(), ArticulateMesh(model, canonical, v, t));
+      written.insert(name);
       ++summary.frames_written;
       if (progress) progress(summary.frames_written, num_frames);
+    }
+    // Meshes of an earlier run left in frames/ would be picked up by
+    // `banmo eval --pred OUT/frames`: say so (they are not deleted).
+    int stale = 0;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(frame_dir, ec)) {
+      const std::string name = entry.path().filename().string();
+      if (entry.path().extension() == ".ply" && !written.count(name)) ++stale;
+    }
+    if (stale > 0) {
+      LOG(WARNING) << frame_dir.string() << " holds " << stale
+                   << " other .ply files (from an earlier run?); `banmo eval --pred` on this "
+                      "folder would read them too";
     }
   }
   summary.articulate_seconds = timer.Seconds();
