@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "banmo/deform/bones.h"
 #include "banmo/losses/ray_functors.h"
@@ -739,8 +740,14 @@ class RayTermCostFunction final : public ceres::CostFunction {
     const bool want_jacobians = jacobians != nullptr;
     bool use_cache =
         batch_->cache_valid() && (!want_jacobians || batch_->evaluation(index_).has_jacobians);
+    // Ceres passes pointers into its own state vector, so the cache is
+    // recognised by value: it was computed from the model's blocks, and
+    // serves this call if the given values equal them (a memcmp of a few
+    // kB per block, negligible next to an evaluation).
+    const std::vector<int32_t>& sizes = parameter_block_sizes();
     for (size_t i = 0; use_cache && i < blocks_.size(); ++i) {
-      use_cache = parameters[i] == model_blocks_[i];
+      use_cache = parameters[i] == model_blocks_[i] ||
+                  std::memcmp(parameters[i], model_blocks_[i], sizeof(double) * sizes[i]) == 0;
     }
     const RayEvaluation* ev = nullptr;
     std::vector<RayEvaluation> local;

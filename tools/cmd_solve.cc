@@ -1,0 +1,113 @@
+// banmo solve: reconstruct an animatable model from a dataset by running the
+// stages of a config (docs/solver.md, docs/config.md).
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "banmo/io/dataset.h"
+#include "banmo/optim/checkpoint.h"
+#include "banmo/optim/config.h"
+#include "banmo/optim/solver.h"
+#include "banmo/util/atomic_file.h"
+#include "banmo/util/error.h"
+#include "banmo/util/timer.h"
+#include "command.h"
+#include "solve_outputs.h"
+
+namespace banmo {
+namespace {
+
+int RunSolve(int argc, char** argv) {
+  CLI::App app{
+      "Reconstruct an animatable 3D model from a dataset: runs the stages of a config with "
+      "Ceres, writes checkpoints, then extracts meshes and (when the dataset has ground truth) "
+      "evaluates them.",
+      "banmo solve"};
+  std::string data_dir, config_path, out_dir, retarget_dir;
+  bool resume = false, overwrite = false, no_extract = false, no_eval = false, quiet = false;
+  int seed = -1, threads = -1, resolution = 128;
+  app.add_option("--data", data_dir, "Dataset folder (docs/dataset.md)")->required();
+  app.add_option("--config", config_path, "Stage config, e.g. problems/default.yaml")->required();
+  app.add_option("--out", out_dir, "Output folder (config.yaml, checkpoint/, meshes/, eval/)")
+      ->required();
+  app.add_flag("--resume", resume, "Continue from OUT/checkpoint (same result as uninterrupted)");
+  app.add_option("--retarget", retarget_dir,
+                 "Model folder (OUT/checkpoint of an earlier solve): keep its shape, colour, "
+                 "embedding and bones fixed and fit the poses of this dataset's videos");
+  app.add_option("--seed", seed, "Random seed (overrides the config's)");
+  app.add_option("--threads", threads, "Worker threads (0 = all cores; overrides the config)");
+  app.add_option("--resolution", resolution, "Marching-cubes resolution of the final meshes")
+      ->capture_default_str();
+  app.add_flag("--overwrite", overwrite, "Allow a non-empty --out (without --resume)");
+  app.add_flag("--no-extract", no_extract, "Skip mesh extraction at the end");
+  app.add_flag("--no-eval", no_eval, "Skip evaluation against ground truth at the end");
+  app.add_flag("--quiet", quiet, "No progress lines");
+  CLI11_PARSE(app, argc, argv);
+
+  SolverConfig config = LoadSolverConfig(config_path);
+  if (seed >= 0) config.seed = static_cast<uint32_t>(seed);
+  if (threads >= 0) config.threads = threads;
+  if (resolution < 16 || resolution > 1024) {
+    ThrowInputError("--resolution: expected 16..1024, got ", resolution);
+  }
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (resume) {
+    if (!fs::exists(out_dir + "/checkpoint/model.yaml") &&
+        !fs::exists(out_dir + "/checkpoint.old/model.yaml")) {
+      ThrowInputError("--resume: ", out_dir, "/checkpoint does not exist");
+    }
+  } else if (fs::exists(out_dir, ec) && !fs::is_empty(out_dir, ec) && !overwrite) {
+    ThrowInputError("--out ", out_dir,
+                    ": folder exists and is not empty (use --overwrite or --resume)");
+  }
+  MakeDirectories(out_dir);
+  WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));
+
+  LoadOptions load;
+  load.load_features = false;
+  load.load_flow = false;
+  for (const StageConfig& s : config.stages) {
+    load.load_features =
+        load.load_features || s.losses.feature_match.weight > 0 || s.losses.cycle_2d.weight > 0;
+    load.load_flow = load.load_flow || s.losses.flow.weight > 0;
+  }
+  Timer timer;
+  const Dataset dataset = LoadDataset(data_dir, load);
+  std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
+              dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
+
+  std::unique_ptr<Model> model = MakeModelForDataset(dataset, config.model);
+  SolveOptions options;
+  options.out_dir = out_dir;
+  options.resume = resume;
+  options.quiet = quiet;
+  if (!retarget_dir.empty()) {
+    CheckpointInfo info;
+    std::unique_ptr<Model> source = LoadCheckpoint(retarget_dir, &info);
+    CopySharedParameters(*source, model.get(), retarget_dir);  // optim/solver.h
+    options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones"};
+  }
+  Solver solver(dataset, config, std::move(model));
+  const SolveResult result = solver.Run(options);
+  if (result.interrupted) {
+    std::printf("interrupted: resume with  banmo solve --data %s --config %s --out %s --resume\n",
+                data_dir.c_str(), config_path.c_str(), out_dir.c_str());
+    return 130;
+  }
+  for (const StageSummary& s : result.stages) {
+    if (!s.finite) ThrowInputError("stage ", s.name, " produced non-finite parameters");
+  }
+  std::printf("banmo solve: %zu stage(s) in %.1f s\n", result.stages.size(), timer.Seconds());
+  if (!no_extract) {
+    WriteSolveOutputs(solver.model(), dataset, out_dir, resolution, !no_eval);
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace banmo
+
+BANMO_REGISTER_COMMAND(solve, "Reconstruct an animatable model from a dataset (stage configs)",
+                       banmo::RunSolve);
