@@ -610,6 +610,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
+  if (s.schedule.delta_skinning_from < 1.0) {
+    c.Fail(h + ".delta_skinning_from",
+           "delta skinning is not available yet: expected >= 1 (off), got ",
+           s.schedule.delta_skinning_from);
+  }
 
   c.NonNegative(p + ".checkpoint_every", s.checkpoint_every);
   c.NonNegative(p + ".log_every", s.log_every);

@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 
+#include "banmo/extract/extract.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/regularizers.h"
@@ -359,11 +360,35 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         const_cast<CanonicalField&>(model.field()).SetAnnealing(alpha);
       }
 
+      // ---- Schedules. ----
+      if (stage.schedule.bounds_refresh_every > 0 && it > 0 &&
+          it % stage.schedule.bounds_refresh_every == 0) {
+        RefreshBounds();
+      }
+      for (double at : stage.schedule.bone_reinit_at) {
+        if (B > 0 && it == static_cast<int>(std::lround(at * stage.iterations)) && it > start) {
+          ReinitializeBones(state);
+        }
+      }
+
       // ---- The minibatch. ----
       for (ceres::ResidualBlockId id : batch_blocks) problem.RemoveResidualBlock(id);
       batch_blocks.clear();
       std::vector<Ray> rays = sampler.Sample(stage.batch_rays, stage.samples_per_ray,
                                              stage.sampling, model, bounds_, &state->rng);
+      if (stage.sampling.importance_depth) {
+        // Half the samples stay stratified, half are drawn from the rendering
+        // weights of a first pass (NeRF's hierarchical sampling, one level).
+        RayBatchOptions coarse_options = batch_options;
+        coarse_options.weights = RayLossWeights();
+        coarse_options.weights.feature_match = coarse_options.weights.cycle_2d = 0.0;
+        RayBatch coarse(&model, coarse_options);
+        coarse.SetRays(rays);
+        coarse.EvaluateAll(false);
+        for (int r = 0; r < coarse.num_rays(); ++r) {
+          ImportanceResample(coarse.evaluation(r).tau, &rays[r].samples, &state->rng);
+        }
+      }
       Eigen::Matrix3Xd grid(3, stage.sampling.match_grid_points);
       std::uniform_real_distribution<double> unit(0.0, 1.0);
       for (int i = 0; i < grid.cols(); ++i) {
@@ -598,6 +623,81 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
     }
   }
   return result;
+}
+
+}  // namespace banmo
+
+namespace banmo {
+
+void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng) {
+  const int n = static_cast<int>(samples->depths.size());
+  CHECK_EQ(static_cast<int>(tau.size()), n);
+  if (n < 2) return;
+  // Interval i spans [depth_i, depth_i + delta_i / dir_norm).
+  const double dir_norm = samples->dir_norm;
+  std::vector<double> lo(n), hi(n), cdf(n + 1, 0.0);
+  for (int i = 0; i < n; ++i) {
+    lo[i] = samples->depths[i];
+    hi[i] = samples->depths[i] + samples->deltas[i] / dir_norm;
+    cdf[i + 1] = cdf[i] + std::max(tau[i], 0.0) + 1e-5;  // floor keeps empty rays sampled
+  }
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<double> depths;
+  depths.reserve(n);
+  for (int i = 0; i < n; i += 2) depths.push_back(samples->depths[i]);
+  while (static_cast<int>(depths.size()) < n) {
+    const double u = unit(*rng) * cdf[n];
+    const int i =
+        std::min<int>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin() - 1, n - 1);
+    const double f = (u - cdf[i]) / std::max(cdf[i + 1] - cdf[i], 1e-300);
+    depths.push_back(lo[i] + f * (hi[i] - lo[i]));
+  }
+  std::sort(depths.begin(), depths.end());
+  const double far = hi[n - 1];
+  samples->depths = depths;
+  for (int i = 0; i < n; ++i) {
+    const double next = i + 1 < n ? depths[i + 1] : far;
+    samples->deltas[i] = std::max(next - depths[i], 1e-9) * dir_norm;
+  }
+}
+
+void Solver::RefreshBounds() {
+  const Eigen::AlignedBox3d surface = SurfaceBounds(*model_, bounds_, 48);
+  if (surface.isEmpty()) return;
+  const Eigen::Vector3d margin = 0.1 * surface.sizes() + Eigen::Vector3d::Constant(0.02);
+  Eigen::AlignedBox3d next(surface.min() - margin, surface.max() + margin);
+  next = next.intersection(
+      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0), Eigen::Vector3d::Constant(2.0)));
+  if (!next.isEmpty()) bounds_ = next;
+}
+
+void Solver::ReinitializeBones(State* state) {
+  Model& model = *model_;
+  const int B = model.num_bones();
+  ExtractOptions options;
+  options.grid.resolution = 48;
+  options.grid.bounds_min = bounds_.min();
+  options.grid.bounds_max = bounds_.max();
+  TriangleMesh mesh;
+  try {
+    mesh = ExtractCanonicalMesh(model, options);
+  } catch (const InputError&) {
+    return;  // no surface yet: keep the bones
+  }
+  if (mesh.NumVertices() < B) return;
+  const std::vector<Eigen::Vector3d> centres =
+      BoneCentresFromSurface(mesh, B, static_cast<uint32_t>(state->rng()));
+  InitializeBones(centres, model.options().init_bone_scale, model.bones());
+  for (int v = 0; v < model.num_videos(); ++v) {
+    for (size_t t = 0; t < model.video(v).frames.size(); ++t) {
+      double* bones_t = model.frame(v, t).bones_t.data();
+      for (int b = 0; b < B; ++b) PoseSetIdentity(bones_t + kPoseSize * b);
+    }
+  }
+  for (auto it = state->adam.begin(); it != state->adam.end();) {
+    const bool bone = it->first == "bones" || it->first.find("bones_t") != std::string::npos;
+    it = bone ? state->adam.erase(it) : std::next(it);
+  }
 }
 
 }  // namespace banmo

@@ -11,6 +11,7 @@ RaySamples StratifiedSamples(int num_samples, double near, double far, double di
   RaySamples s;
   s.depths.resize(num_samples);
   s.deltas.resize(num_samples);
+  s.dir_norm = dir_norm;
   const double bin = (far - near) / num_samples;
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   for (int i = 0; i < num_samples; ++i) {

@@ -314,7 +314,7 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].schedule.anneal_end_fraction",
        [&](SolverConfig* c) { S(c).schedule.anneal_end_fraction = 2; }},
       {"stages[1].schedule.delta_skinning_from",
-       [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = -1; }},
+       [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = 0.5; }},
       {"stages[1].checkpoint_every", [&](SolverConfig* c) { S(c).checkpoint_every = -1; }},
       {"stages[1].log_every", [&](SolverConfig* c) { S(c).log_every = -1; }},
   };
@@ -453,7 +453,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.bone_reinit_at = {0.1, 0.9};
     s.schedule.bounds_refresh_every = 25;
     s.schedule.anneal_end_fraction = 0.4;
-    s.schedule.delta_skinning_from = 0.6;
+    s.schedule.delta_skinning_from = 1.5;  // >= 1: delta skinning is not available yet
     s.checkpoint_every = 50;
     s.log_every = 5;
     c.stages.push_back(s);

@@ -19,10 +19,12 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "banmo/io/dataset.h"
+#include "banmo/losses/ray.h"
 #include "banmo/model/model.h"
 #include "banmo/optim/config.h"
 
@@ -36,6 +38,12 @@ std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOp
 // fields, beta, rest bones) of `from` into `to`. Throws InputError naming
 // `source` if the two models' sizes differ.
 void CopySharedParameters(const Model& from, Model* to, const std::string& source);
+
+// Replaces half of `samples` (the odd-indexed ones after sorting) by depths
+// drawn from the piecewise-constant density given by the rendering weights
+// `tau` over the samples' intervals, keeps the depths sorted and recomputes
+// the interval lengths. Used by importance_depth sampling.
+void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng);
 
 struct SolveOptions {
   std::string out_dir;  // checkpoints go to out_dir/checkpoint (empty: no checkpoints)
@@ -83,6 +91,13 @@ class Solver {
  private:
   struct State;
   SolveResult RunStages(const SolveOptions& options, State* state);
+  // Canonical bounds from a coarse extraction of the current surface (10 %
+  // margin, within [-2, 2]^3); unchanged if the level set is empty.
+  void RefreshBounds();
+  // Rest bones re-initialised on the current surface (k-means of a coarse
+  // extraction), bone transforms reset to the identity, their Adam moments
+  // cleared.
+  void ReinitializeBones(State* state);
 
   const Dataset& dataset_;
   const SolverConfig& config_;

@@ -61,6 +61,7 @@ inline void CompositeWeights(int num_samples, const T* sdf, const T& log_beta, c
 struct RaySamples {
   std::vector<double> depths;
   std::vector<double> deltas;
+  double dir_norm = 1.0;  // length of the ray direction with z = 1
 };
 RaySamples StratifiedSamples(int num_samples, double near, double far, double dir_norm, bool jitter,
                              std::mt19937* rng);
