@@ -4,12 +4,12 @@
 
 #include <random>
 
+#include "banmo/util/dual.h"
 #include "field_test_util.h"
 
 namespace banmo {
 namespace {
 
-using test::Dual;
 using test::JetJacobian;
 using test::ScaledError;
 
@@ -203,7 +203,7 @@ TEST(CanonicalField, SdfGradientBackwardMatchesJetReference) {
     Dual<J> xd[3], sdf;
     for (int i = 0; i < 3; ++i) xd[i] = Dual<J>(xj[i], J(c(i, j)));
     field.EvaluateSdf(pj, xd, &sdf, static_cast<Dual<J>*>(nullptr));
-    s[0] = sdf.d;
+    s[0] = sdf.tangent;
   };
   const int Ps = field.SdfParameterSize();
   const Eigen::VectorXd pv = Eigen::Map<const Eigen::VectorXd>(f.sdf.data(), Ps);

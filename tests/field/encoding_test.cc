@@ -4,12 +4,12 @@
 
 #include <random>
 
+#include "banmo/util/dual.h"
 #include "field_test_util.h"
 
 namespace banmo {
 namespace {
 
-using test::Dual;
 using test::JetJacobian;
 using test::ScaledError;
 
@@ -67,7 +67,7 @@ TEST(PositionalEncoding, BatchMatchesSinglePointAndJets) {
           for (int c = 0; c < 3; ++c) xd[c] = Dual<J>(xj[c], J(1.0));
           std::vector<Dual<J>> od(D);
           pe.Encode(xd, od.data());
-          for (int r = 0; r < D; ++r) o[r] = od[r].d;
+          for (int r = 0; r < D; ++r) o[r] = od[r].tangent;
         },
         Eigen::VectorXd(x.col(j)), D);
     for (int r = 0; r < D; ++r) {

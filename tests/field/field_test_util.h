@@ -1,92 +1,15 @@
-// Test helpers for the field module: a forward-mode dual number over any
-// scalar (to differentiate Jacobian-vector products wrt parameters with Jets,
-// since nested ceres::Jets do not mix with double constants), and a chunked
-// full-Jet Jacobian.
+// Test helpers for the field module: a chunked full-Jet Jacobian and a scaled
+// error. (Jacobian-vector products are differentiated wrt parameters with
+// banmo::Dual over Jets, include/banmo/util/dual.h.)
 #pragma once
 
 #include <ceres/jet.h>
 
 #include <Eigen/Core>
-#include <cmath>
+#include <algorithm>
 #include <vector>
 
 namespace banmo::test {
-
-// x = v + eps d with eps^2 = 0, over a scalar S (double or ceres::Jet).
-template <typename S>
-struct Dual {
-  S v;
-  S d;
-  Dual() : v(0.0), d(0.0) {}
-  Dual(double x) : v(x), d(0.0) {}    // NOLINT: implicit like Jet
-  Dual(const S& x) : v(x), d(0.0) {}  // NOLINT
-  Dual(const S& x, const S& dx) : v(x), d(dx) {}
-  Dual& operator+=(const Dual& o) {
-    v += o.v;
-    d += o.d;
-    return *this;
-  }
-};
-
-template <typename S>
-Dual<S> operator+(const Dual<S>& a, const Dual<S>& b) {
-  return {a.v + b.v, a.d + b.d};
-}
-template <typename S>
-Dual<S> operator-(const Dual<S>& a, const Dual<S>& b) {
-  return {a.v - b.v, a.d - b.d};
-}
-template <typename S>
-Dual<S> operator-(const Dual<S>& a) {
-  return {-a.v, -a.d};
-}
-template <typename S>
-Dual<S> operator*(const Dual<S>& a, const Dual<S>& b) {
-  return {a.v * b.v, a.d * b.v + a.v * b.d};
-}
-template <typename S>
-Dual<S> operator*(double s, const Dual<S>& a) {
-  return {s * a.v, s * a.d};
-}
-template <typename S>
-Dual<S> operator*(const S& s, const Dual<S>& a) {
-  return {s * a.v, s * a.d};
-}
-template <typename S>
-Dual<S> operator/(const Dual<S>& a, double s) {
-  return {a.v / s, a.d / s};
-}
-template <typename S>
-Dual<S> operator/(const Dual<S>& a, const Dual<S>& b) {
-  return {a.v / b.v, (a.d * b.v - a.v * b.d) / (b.v * b.v)};
-}
-template <typename S>
-bool operator>(const Dual<S>& a, const Dual<S>& b) {
-  return a.v > b.v;
-}
-template <typename S>
-Dual<S> exp(const Dual<S>& a) {
-  using std::exp;
-  const S e = exp(a.v);
-  return {e, e * a.d};
-}
-template <typename S>
-Dual<S> log1p(const Dual<S>& a) {
-  using std::log1p;
-  return {log1p(a.v), a.d / (S(1.0) + a.v)};
-}
-template <typename S>
-Dual<S> sin(const Dual<S>& a) {
-  using std::cos;
-  using std::sin;
-  return {sin(a.v), cos(a.v) * a.d};
-}
-template <typename S>
-Dual<S> cos(const Dual<S>& a) {
-  using std::cos;
-  using std::sin;
-  return {cos(a.v), -sin(a.v) * a.d};
-}
 
 // Full Jacobian (out_dim x x.size()) of f(const Jet* x, Jet* out), in chunks
 // of N derivative slots (Jet<double, N>), so large parameter blocks work.

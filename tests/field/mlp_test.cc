@@ -7,13 +7,13 @@
 #include <memory>
 #include <random>
 
+#include "banmo/util/dual.h"
 #include "banmo/util/parallel.h"
 #include "field_test_util.h"
 
 namespace banmo {
 namespace {
 
-using test::Dual;
 using test::JetJacobian;
 using test::ScaledError;
 
@@ -171,7 +171,7 @@ TEST_P(MlpTest, BackwardOfTangentMatchesJetReference) {
     for (int i = 0; i < 5; ++i) xd[i] = Dual<J>(xj[i], vj[i]);
     mlp.Forward(pj, xd, out);
     s[0] = J(0.0);
-    for (int o = 0; o < 3; ++o) s[0] += c(o, j) * out[o].d;
+    for (int o = 0; o < 3; ++o) s[0] += c(o, j) * out[o].tangent;
   };
   Eigen::MatrixXd ref = Eigen::MatrixXd::Zero(mlp.NumParameters(), G);
   for (int g = 0; g < G; ++g) {
