@@ -1,17 +1,15 @@
 // Runs the built `banmo eval` and checks exit codes, messages and outputs.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <cstdio>
-#include <cstring>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <limits>
-#include <sstream>
 #include <string>
 
 #include "../io/test_dataset_util.h"
 #include "banmo/geometry/mesh_io.h"
+#include "run_banmo.h"
 #include "test_shapes.h"
 
 namespace banmo {
@@ -19,30 +17,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
+using testing::CommandResult;
+using testing::ReadText;
 
-RunResult RunBanmo(const std::string& args) {
-  const std::string command = std::string(BANMO_BINARY) + " eval " + args + " 2>&1";
-  RunResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) result.output.append(buffer, n);
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+CommandResult RunEval(const std::string& args) { return testing::RunBanmo("eval " + args); }
 
 // Writes a binary PLY by hand (WritePly refuses non-finite vertices).
 void WriteRawPly(const fs::path& path, const Eigen::Matrix3Xd& vertices,
@@ -89,17 +67,17 @@ class EvalCli : public ::testing::Test {
 TEST_F(EvalCli, WritesTableCsvAndJson) {
   for (const std::string protocol : {"banmo", "surface"}) {
     const std::string out = Path("out_" + protocol);
-    const RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt") + " --protocol " +
-                                 protocol + " --samples 3000 --out " + out);
-    ASSERT_EQ(r.exit_code, 0) << r.output;
-    EXPECT_NE(r.output.find("CD(cm)"), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("mean"), std::string::npos);
-    const std::string json = ReadText(fs::path(out) / "summary.json");
+    const CommandResult r = RunEval("--pred " + Path("pred") + " --gt " + Path("gt") +
+                                    " --protocol " + protocol + " --samples 3000 --out " + out);
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("CD(cm)"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("mean"), std::string::npos);
+    const std::string json = ReadText(out + "/summary.json");
     for (const char* key : {"\"chamfer_cm\"", "\"fscore_1\"", "\"fscore_2\"", "\"fscore_5\"",
                             "\"frames\": 3", "\"worst_frame\"", "\"protocol\""}) {
       EXPECT_NE(json.find(key), std::string::npos) << key << "\n" << json;
     }
-    const std::string csv = ReadText(fs::path(out) / "per_frame.csv");
+    const std::string csv = ReadText(out + "/per_frame.csv");
     EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 4) << csv;  // header + 3 frames
     EXPECT_EQ(csv.rfind("frame,pred,gt,chamfer_cm", 0), 0u);
     // No temporary files left behind.
@@ -110,24 +88,24 @@ TEST_F(EvalCli, WritesTableCsvAndJson) {
 }
 
 TEST_F(EvalCli, SingleFilesWork) {
-  const RunResult r =
-      RunBanmo("--pred " + Path("pred/frame_0.obj") + " --gt " + Path("gt/frame_0.ply"));
-  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const CommandResult r =
+      RunEval("--pred " + Path("pred/frame_0.obj") + " --gt " + Path("gt/frame_0.ply"));
+  EXPECT_EQ(r.exit_code, 0) << r.out;
 }
 
 TEST_F(EvalCli, MismatchedFrameCounts) {
-  const RunResult r = RunBanmo("--pred " + Path("pred/frame_0.obj") + " --gt " + Path("gt"));
+  const CommandResult r = RunEval("--pred " + Path("pred/frame_0.obj") + " --gt " + Path("gt"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("frame counts differ"), std::string::npos) << r.output;
+  EXPECT_NE(r.out.find("frame counts differ"), std::string::npos) << r.out;
 }
 
 TEST_F(EvalCli, EmptyMesh) {
   const fs::path empty = root_ / "gt" / "frame_1.ply";
   WriteRawPly(empty, Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xi(3, 0));
-  const RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt"));
+  const CommandResult r = RunEval("--pred " + Path("pred") + " --gt " + Path("gt"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find(empty.string()), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("no vertices"), std::string::npos) << r.output;
+  EXPECT_NE(r.out.find(empty.string()), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no vertices"), std::string::npos) << r.out;
 }
 
 TEST_F(EvalCli, NanVertex) {
@@ -138,26 +116,25 @@ TEST_F(EvalCli, NanVertex) {
   const fs::path bad = root_ / "pred" / "frame_2.ply";
   fs::remove(root_ / "pred" / "frame_2.obj");
   WriteRawPly(bad, v, f);
-  const RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt"));
+  const CommandResult r = RunEval("--pred " + Path("pred") + " --gt " + Path("gt"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find(bad.string() + ": vertex 2 has a non-finite coordinate"),
-            std::string::npos)
-      << r.output;
+  EXPECT_NE(r.out.find(bad.string() + ": vertex 2 has a non-finite coordinate"), std::string::npos)
+      << r.out;
 }
 
 TEST_F(EvalCli, UnreadableAndMissingFiles) {
   const fs::path garbage = root_ / "gt" / "frame_0.ply";
   std::ofstream(garbage) << "this is not a ply file\n";
-  RunResult r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt"));
+  CommandResult r = RunEval("--pred " + Path("pred") + " --gt " + Path("gt"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find(garbage.string()), std::string::npos) << r.output;
-  r = RunBanmo("--pred " + Path("nowhere") + " --gt " + Path("gt"));
+  EXPECT_NE(r.out.find(garbage.string()), std::string::npos) << r.out;
+  r = RunEval("--pred " + Path("nowhere") + " --gt " + Path("gt"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("nowhere: does not exist"), std::string::npos) << r.output;
-  r = RunBanmo("--pred " + Path("pred") + " --gt " + Path("gt") + " --protocol chamfer");
+  EXPECT_NE(r.out.find("nowhere: does not exist"), std::string::npos) << r.out;
+  r = RunEval("--pred " + Path("pred") + " --gt " + Path("gt") + " --protocol chamfer");
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("--protocol: unknown protocol 'chamfer'"), std::string::npos);
-  r = RunBanmo("--pred " + Path("pred"));  // --gt missing: CLI11 usage error
+  EXPECT_NE(r.out.find("--protocol: unknown protocol 'chamfer'"), std::string::npos);
+  r = RunEval("--pred " + Path("pred"));  // --gt missing: CLI11 usage error
   EXPECT_NE(r.exit_code, 0);
 }
 
@@ -175,15 +152,15 @@ TEST_F(EvalCli, DatasetAsGroundTruth) {
   }
   const std::string dir = Path("dataset");
   WriteDataset(dataset, dir, &meshes);
-  RunResult r = RunBanmo("--pred " + Path("pred4") + " --gt " + dir + " --out " + Path("out"));
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("4 frame(s)"), std::string::npos) << r.output;
-  const std::string json = ReadText(root_ / "out" / "summary.json");
+  CommandResult r = RunEval("--pred " + Path("pred4") + " --gt " + dir + " --out " + Path("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("4 frame(s)"), std::string::npos) << r.out;
+  const std::string json = ReadText(Path("out/summary.json"));
   EXPECT_NE(json.find("\"chamfer_cm\": 0,"), std::string::npos) << json;  // identical meshes
   // Frame count mismatch against the dataset.
-  r = RunBanmo("--pred " + Path("pred") + " --gt " + dir);
+  r = RunEval("--pred " + Path("pred") + " --gt " + dir);
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("frame counts differ"), std::string::npos) << r.output;
+  EXPECT_NE(r.out.find("frame counts differ"), std::string::npos) << r.out;
 }
 
 }  // namespace
