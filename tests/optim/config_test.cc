@@ -110,8 +110,8 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), "root"), s3.constant.end());
   // The defaults block reached every stage.
   for (const StageConfig& s : c.stages) {
-    EXPECT_EQ(s.batch_rays, 1024);
-    EXPECT_EQ(s.samples_per_ray, 32);
+    EXPECT_EQ(s.batch_rays, 512);
+    EXPECT_EQ(s.samples_per_ray, 24);
   }
   EXPECT_EQ(
       LoadSolverConfig(std::string(BANMO_SOURCE_DIR) + "/problems/rigid.yaml").model.num_bones, 0);
