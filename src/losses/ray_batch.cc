@@ -263,6 +263,44 @@ void RayBatch::EvaluateAll(bool jacobians) {
   cache_has_jacobians_ = jacobians;
 }
 
+double RayBatch::EvaluateGradient(const RayRobustLosses& robust,
+                                  std::map<const double*, Eigen::VectorXd>* gradient) const {
+  CHECK(gradient != nullptr);
+  std::vector<const Ray*> rays(rays_.size());
+  std::vector<RayParameters> params(rays_.size());
+  for (size_t r = 0; r < rays_.size(); ++r) {
+    rays[r] = &rays_[r];
+    params[r] = ModelParameters(rays_[r]);
+  }
+  std::vector<RayEvaluation> evals;
+  std::vector<double> ray_cost;
+  std::array<Eigen::VectorXd, 3> mlp;
+  EvaluateRaysImpl(rays, params, false, &robust, &evals, &ray_cost, &mlp);
+  auto add = [&](const double* block, const Eigen::Ref<const Eigen::VectorXd>& g) {
+    Eigen::VectorXd& sum = (*gradient)[block];
+    if (sum.size() == 0) sum = Eigen::VectorXd::Zero(g.size());
+    CHECK_EQ(sum.size(), g.size()) << "gradient entry of the wrong size";
+    sum += g;
+  };
+  // Fixed order: rays in batch order, blocks in RayBlock order.
+  double cost = 0.0;
+  for (size_t r = 0; r < rays_.size(); ++r) {
+    cost += ray_cost[r];
+    for (int b = 0; b < kNumRayBlocks; ++b) {
+      if (b == kBlockSdf || b == kBlockColor || b == kBlockEmbedding) continue;
+      const RowMajorMatrix& row = evals[r].jacobians[b];
+      if (params[r].block[b] == nullptr || row.cols() == 0) continue;
+      add(params[r].block[b], row.row(0).transpose());
+    }
+  }
+  if (!rays_.empty()) {
+    add(model_->sdf(), mlp[0]);
+    add(model_->color(), mlp[1]);
+    if (model_->embedding_size() > 0) add(model_->embedding(), mlp[2]);
+  }
+  return cost;
+}
+
 namespace {
 
 // Block sizes of a ray's parameters.
@@ -290,9 +328,27 @@ std::array<int, kNumRayBlocks> BlockSizes(const Model& m, const RayParameters& p
 void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
                             const std::vector<RayParameters>& params, bool jacobians,
                             std::vector<RayEvaluation>* out) const {
+  EvaluateRaysImpl(rays, params, jacobians, nullptr, out, nullptr, nullptr);
+}
+
+void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
+                                const std::vector<RayParameters>& params, bool full_jacobians,
+                                const RayRobustLosses* robust, std::vector<RayEvaluation>* out,
+                                std::vector<double>* ray_cost,
+                                std::array<Eigen::VectorXd, 3>* mlp_gradient) const {
   CHECK_EQ(rays.size(), params.size());
+  // Gradient mode: one cotangent row per ray (c^T J) instead of full Jacobians.
+  const bool gradient = robust != nullptr;
+  CHECK(!(gradient && full_jacobians));
+  CHECK(!gradient || (ray_cost != nullptr && mlp_gradient != nullptr));
+  // Local derivatives (Jets, warp and projection Jacobians) are needed in both.
+  const bool jacobians = full_jacobians || gradient;
   const int num_rays = static_cast<int>(rays.size());
   out->assign(num_rays, RayEvaluation());
+  if (gradient) {
+    ray_cost->assign(num_rays, 0.0);
+    for (int m = 0; m < 3; ++m) (*mlp_gradient)[m].resize(0);
+  }
   if (num_rays == 0) return;
   const Model& model = *model_;
   const CanonicalField& field = model.field();
@@ -433,7 +489,9 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
       const RayRenderFunctor render(ray, weights);
       const RenderLocals& L = render.locals();
       const int R = render.num_residuals();
-      s.render_rows = R;
+      // Rows of the reverse chain: R, or one cotangent row in gradient mode.
+      const int Rc = gradient ? std::min(R, 1) : R;
+      s.render_rows = Rc;
       const bool cycle3d = ray.HasTerm(LossTerm::kCycle3d, weights);
       const int total_rows = R + (cycle3d ? 3 * n : 0);
       ev.residuals.assign(total_rows, 0.0);
@@ -450,10 +508,10 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
       }
       const std::array<int, kNumRayBlocks> sizes = BlockSizes(model, p);
       if (jacobians) {
-        ev.has_jacobians = true;
+        ev.has_jacobians = !gradient;
         for (int b = 0; b < kNumRayBlocks; ++b) {
           const bool mlp = b == kBlockSdf || b == kBlockColor || b == kBlockEmbedding;
-          ev.jacobians[b].setZero(mlp ? R : total_rows, sizes[b]);
+          ev.jacobians[b].setZero(mlp ? Rc : (gradient ? 1 : total_rows), sizes[b]);
         }
       }
 
@@ -522,6 +580,22 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
           render(u.data(), ev.residuals.data());
         }
       }
+      if (gradient && R > 0) {
+        // Each render term's rows collapse into c = rho'(s) r, s = |r_term|^2.
+        Eigen::RowVectorXd c(R);
+        for (int t = 0; t < kNumRenderTerms; ++t) {
+          const int row = ev.term_row[t];
+          if (row < 0) continue;
+          const int rows = LossTermResiduals(static_cast<LossTerm>(t), n);
+          const Eigen::Map<const Eigen::RowVectorXd> r_t(ev.residuals.data() + row, rows);
+          const double sq = r_t.squaredNorm();
+          double rho[3] = {sq, 1.0, 0.0};
+          if ((*robust)[t] != nullptr) (*robust)[t]->Evaluate(sq, rho);
+          (*ray_cost)[r] += 0.5 * rho[0];
+          c.segment(row, rows) = rho[1] * r_t;
+        }
+        D = (c * D).eval();
+      }
 
       // Rendering weights; the 3D cycle (Eq. 19) uses the ray's fixed
       // cycle_tau when set (the minibatch's constants), else these values.
@@ -550,23 +624,23 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
 
       // ---- Reverse chain (render rows). ----
       auto& jac = ev.jacobians;
-      RowMajorMatrix a_xstar = RowMajorMatrix::Zero(R, 3 * n);
+      RowMajorMatrix a_xstar = RowMajorMatrix::Zero(Rc, 3 * n);
       Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> a_view =
-          Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>::Zero(R, 3);
-      s.a_sdf = RowMajorMatrix::Zero(R, n);
-      s.a_rgb = RowMajorMatrix::Zero(R, 3 * n);
-      s.a_xhat = RowMajorMatrix::Zero(R, 3);
-      if (R > 0) {
+          Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>::Zero(Rc, 3);
+      s.a_sdf = RowMajorMatrix::Zero(Rc, n);
+      s.a_rgb = RowMajorMatrix::Zero(Rc, 3 * n);
+      s.a_xhat = RowMajorMatrix::Zero(Rc, 3);
+      if (Rc > 0) {
         s.a_sdf = D.middleCols(L.sdf, n);
         if (L.has_rgb) s.a_rgb = D.middleCols(L.rgb, 3 * n);
         if (L.has_matched) {
           a_xstar += D.middleCols(L.canonical, 3 * n);
           s.a_xhat += D.middleCols(L.matched, 3);
         }
-        jac[kBlockLogBeta].topRows(R).col(0) += D.col(L.log_beta);
+        jac[kBlockLogBeta].topRows(Rc).col(0) += D.col(L.log_beta);
       }
       // Field inputs: X*_i, view direction, appearance code.
-      for (int i = 0; i < n && R > 0; ++i) {
+      for (int i = 0; i < n && Rc > 0; ++i) {
         const int col = s.field_offset + i;
         a_xstar.middleCols<3>(3 * i).noalias() += s.a_sdf.col(i) * fb.dsdf_dx.col(col).transpose();
         if (L.has_rgb) {
@@ -604,7 +678,7 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
         AddProduct(&jac[kBlockBonesT], 0, a_p, cycle_warp.d_bones_t);
       }
       // Backward warp and sample placement of every X*_i.
-      for (int i = 0; i < n && R > 0; ++i) {
+      for (int i = 0; i < n && Rc > 0; ++i) {
         const auto a_x = a_xstar.middleCols<3>(3 * i);
         const Eigen::Matrix<double, Eigen::Dynamic, 3> a_root_pt = a_x * s.backward[i].d_x;
         AddProduct(&jac[kBlockBones], 0, a_x, s.backward[i].d_bones);
@@ -612,13 +686,59 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
         AddProduct(&jac[kBlockRoot], 0, a_root_pt, s.dxroot_droot[i]);
         AddProduct(&jac[kBlockIntrinsics], 0, a_root_pt, s.dxroot_dk[i]);
       }
-      if (R > 0) {
+      if (Rc > 0) {
         AddProduct(&jac[kBlockRoot], 0, a_view, s.dview_droot);
         AddProduct(&jac[kBlockIntrinsics], 0, a_view, s.dview_dk);
       }
 
+      // ---- 3D cycle, gradient mode: all residuals first (rho' needs the
+      // whole term's |r|^2), then one cotangent row c_i^T E_i per sample. ----
+      if (cycle3d && gradient) {
+        using J = JetN<kPointPoseIntrinsics>;
+        std::vector<WarpJacobian> qjs(n);
+        std::vector<Eigen::Matrix<double, 3, kPointPoseIntrinsics>> Es(n);
+        for (int i = 0; i < n; ++i) {
+          Eigen::Vector3d q;
+          WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT],
+                           s.x_star.col(i).data(), q.data(), &qjs[i]);
+          J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
+          SeedJets(q.data(), 3, 0, qj_jet);
+          SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
+          SeedJets(intr, kIntrinsicsSize, 3 + kPoseSize, k);
+          Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), pose, p.root_init, k,
+                          ray.uv.data(), ray.samples.depths[i], qj_jet, res);
+          for (int c = 0; c < 3; ++c) {
+            ev.residuals[R + 3 * i + c] = res[c].a;
+            Es[i].row(c) = res[c].v.transpose();
+          }
+        }
+        const Eigen::Map<const Eigen::VectorXd> r_t(ev.residuals.data() + R, 3 * n);
+        const double sq = r_t.squaredNorm();
+        double rho[3] = {sq, 1.0, 0.0};
+        const int t = static_cast<int>(LossTerm::kCycle3d);
+        if ((*robust)[t] != nullptr) (*robust)[t]->Evaluate(sq, rho);
+        (*ray_cost)[r] += 0.5 * rho[0];
+        for (int i = 0; i < n; ++i) {
+          const Eigen::Matrix<double, 1, kPointPoseIntrinsics> e =
+              rho[1] * r_t.segment<3>(3 * i).transpose() * Es[i];
+          const Eigen::Matrix<double, 1, 3> a_q = e.leftCols<3>();
+          AddProduct(&jac[kBlockRoot], 0, e.middleCols<kPoseSize>(3),
+                     Eigen::Matrix<double, kPoseSize, kPoseSize>::Identity());
+          AddProduct(&jac[kBlockIntrinsics], 0, e.rightCols<kIntrinsicsSize>(),
+                     Eigen::Matrix<double, kIntrinsicsSize, kIntrinsicsSize>::Identity());
+          const Eigen::Matrix<double, 1, 3> a_x = a_q * qjs[i].d_x;
+          AddProduct(&jac[kBlockBones], 0, a_q, qjs[i].d_bones);
+          AddProduct(&jac[kBlockBonesT], 0, a_q, qjs[i].d_bones_t);
+          const Eigen::Matrix<double, 1, 3> a_root_pt = a_x * s.backward[i].d_x;
+          AddProduct(&jac[kBlockBones], 0, a_x, s.backward[i].d_bones);
+          AddProduct(&jac[kBlockBonesT], 0, a_x, s.backward[i].d_bones_t);
+          AddProduct(&jac[kBlockRoot], 0, a_root_pt, s.dxroot_droot[i]);
+          AddProduct(&jac[kBlockIntrinsics], 0, a_root_pt, s.dxroot_dk[i]);
+        }
+      }
+
       // ---- 3D cycle rows: 3 per sample, small blocks only. ----
-      if (cycle3d) {
+      if (cycle3d && !gradient) {
         using J = JetN<kPointPoseIntrinsics>;
         for (int i = 0; i < n; ++i) {
           const int row0 = R + 3 * i;
@@ -655,6 +775,45 @@ void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
     }
   });
   if (!jacobians) return;
+
+  if (gradient) {
+    // Pass 4, gradient mode: ONE backward pass per MLP over the whole
+    // minibatch (a single group) with the rays' cotangent rows.
+    Eigen::VectorXd d_sdf = Eigen::VectorXd::Zero(total_samples);
+    Eigen::Matrix3Xd d_rgb = Eigen::Matrix3Xd::Zero(3, total_samples);
+    for (int r = 0; r < num_rays; ++r) {
+      const RayScratch& s = scratch[r];
+      if (s.render_rows == 0) continue;
+      for (int i = 0; i < s.num_samples; ++i) {
+        d_sdf(s.field_offset + i) = s.a_sdf(0, i);
+        for (int c = 0; c < 3; ++c) d_rgb(c, s.field_offset + i) = s.a_rgb(0, 3 * i + c);
+      }
+    }
+    Eigen::MatrixXd d_sdf_params, d_color_params, d_embedding_params;
+    field.BackwardBatch(sdf_params, color_params, fb, d_sdf, d_rgb, {0, total_samples},
+                        &d_sdf_params, &d_color_params);
+    (*mlp_gradient)[0] = d_sdf_params.col(0);
+    (*mlp_gradient)[1] = d_color_params.col(0);
+    (*mlp_gradient)[2] = Eigen::VectorXd::Zero(model.embedding_size());
+    if (total_match > 0) {
+      Eigen::MatrixXd d_psi = Eigen::MatrixXd::Zero(kEmbeddingFeatureDim, total_match);
+      for (int r = 0; r < num_rays; ++r) {
+        const RayScratch& s = scratch[r];
+        if (s.render_rows == 0 || s.num_match == 0) continue;
+        const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
+        const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
+        const Eigen::Vector3d a = s.a_xhat.row(0).transpose();
+        Eigen::MatrixXd dpsi;
+        SoftArgmaxBackward(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
+                           options_.matcher.temperature, a.data(), &dpsi, nullptr);
+        d_psi.middleCols(s.match_offset, s.num_match) = dpsi;
+      }
+      field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, {0, total_match},
+                                   &d_embedding_params);
+      (*mlp_gradient)[2] = d_embedding_params.col(0);
+    }
+    return;
+  }
 
   // Pass 4 (batched): MLP weight Jacobians, one backward pass per residual
   // row over the whole minibatch, grouped per ray.

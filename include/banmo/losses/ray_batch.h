@@ -14,6 +14,14 @@
 // weights, the silhouette no colour weights), and each term gets its own
 // robust loss from the stage config.
 //
+// For first-order steps, EvaluateGradient runs the same pipeline with one
+// cotangent row per ray instead of one row per residual: with each term's
+// robust loss rho, c = rho'(|r_term|^2) r_term collapses the ray's rows, the
+// reverse chain carries c^T J, and each MLP gets ONE backward pass over the
+// whole minibatch (a single group). The result is the gradient of
+// 1/2 sum rho(|r_term|^2), what ceres::Problem::Evaluate returns, without
+// forming J.
+//
 // When Evaluate is called at parameter values the batch did not prepare
 // (e.g. ceres::GradientChecker's perturbed copies), the cost function
 // evaluates its ray alone, on the fly, through the same code path: results
@@ -22,9 +30,11 @@
 
 #include <ceres/cost_function.h>
 #include <ceres/evaluation_callback.h>
+#include <ceres/loss_function.h>
 
 #include <Eigen/Core>
 #include <array>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -33,6 +43,10 @@
 #include "banmo/model/model.h"
 
 namespace banmo {
+
+// Robust loss of each loss term (indexed by LossTerm; nullptr = none, i.e.
+// rho(s) = s), as given to ceres::Problem::AddResidualBlock.
+using RayRobustLosses = std::array<const ceres::LossFunction*, kNumLossTerms>;
 
 // Parameter blocks a ray's evaluation reads.
 enum RayBlock {
@@ -124,11 +138,32 @@ class RayBatch : public ceres::EvaluationCallback {
   void EvaluateRays(const std::vector<const Ray*>& rays, const std::vector<RayParameters>& params,
                     bool jacobians, std::vector<RayEvaluation>* out) const;
 
+  // Gradient-only evaluation of the whole batch at the model's current
+  // values: returns the batch's cost, sum over rays and active terms of
+  // 1/2 rho_term(|r_term|^2) (Ceres' convention), and ADDS the gradient of
+  // that cost wrt every parameter block the rays read to (*gradient)[block]
+  // (model pointers as in ModelParameters; MLP blocks included; an absent
+  // entry is created as zeros). Gradients are ambient (no manifold applied).
+  // Deterministic: fixed summation order, independent of the thread count
+  // except inside the MLP backward pass (fixed per thread count). Leaves the
+  // cache untouched.
+  double EvaluateGradient(const RayRobustLosses& robust,
+                          std::map<const double*, Eigen::VectorXd>* gradient) const;
+
   // Marks the cache stale (e.g. after parameters were changed outside Ceres).
   void Invalidate() { cache_valid_ = false; }
 
  private:
   struct Workspace;
+  // EvaluateRays with an optional gradient mode (robust != nullptr): then
+  // each evaluation's small-block "jacobians" hold one row, the ray's
+  // rho'-weighted J^T r transposed, ray_cost its cost, and mlp_gradient the
+  // batch's gradient wrt the sdf, color and embedding blocks.
+  void EvaluateRaysImpl(const std::vector<const Ray*>& rays,
+                        const std::vector<RayParameters>& params, bool jacobians,
+                        const RayRobustLosses* robust, std::vector<RayEvaluation>* out,
+                        std::vector<double>* ray_cost,
+                        std::array<Eigen::VectorXd, 3>* mlp_gradient) const;
   Model* model_;
   RayBatchOptions options_;
   Eigen::Matrix3Xd grid_;
