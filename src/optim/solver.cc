@@ -9,6 +9,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -111,6 +112,38 @@ T Read(const std::string& in, size_t* pos) {
   std::memcpy(&v, in.data() + *pos, sizeof(T));
   *pos += sizeof(T);
   return v;
+}
+
+// Adds the gradient of residual block `id`'s cost, 1/2 rho(|r|^2), wrt its
+// non-constant parameter blocks to (*gradient)[block] (ambient, rho' J^T r as
+// ceres::Problem::Evaluate computes it). Calls the cost function directly, so
+// the problem's evaluation callback (the RayBatch) is not triggered.
+double AddResidualBlockGradient(const ceres::Problem& problem, ceres::ResidualBlockId id,
+                                std::map<const double*, Eigen::VectorXd>* gradient) {
+  const ceres::CostFunction* f = problem.GetCostFunctionForResidualBlock(id);
+  const ceres::LossFunction* loss = problem.GetLossFunctionForResidualBlock(id);
+  std::vector<double*> blocks;
+  problem.GetParameterBlocksForResidualBlock(id, &blocks);
+  const int rows = f->num_residuals();
+  Eigen::VectorXd residuals(rows);
+  std::vector<RowMajorMatrix> jac(blocks.size());
+  std::vector<double*> jac_ptrs(blocks.size(), nullptr);
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    if (problem.IsParameterBlockConstant(blocks[i])) continue;
+    jac[i].resize(rows, f->parameter_block_sizes()[i]);
+    jac_ptrs[i] = jac[i].data();
+  }
+  CHECK(f->Evaluate(blocks.data(), residuals.data(), jac_ptrs.data()));
+  const double sq = residuals.squaredNorm();
+  double rho[3] = {sq, 1.0, 0.0};
+  if (loss != nullptr) loss->Evaluate(sq, rho);
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    if (jac_ptrs[i] == nullptr) continue;
+    Eigen::VectorXd& sum = (*gradient)[blocks[i]];
+    if (sum.size() == 0) sum = Eigen::VectorXd::Zero(jac[i].cols());
+    sum.noalias() += rho[1] * (jac[i].transpose() * residuals);
+  }
+  return 0.5 * rho[0];
 }
 
 }  // namespace
@@ -331,6 +364,9 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
     auto smooth_robust = MakeRobustLoss(stage.losses.pose_smoothness.robust);
 
     std::vector<ceres::ResidualBlockId> batch_blocks;
+    std::vector<ceres::ResidualBlockId> regularizer_blocks;  // of batch_blocks: not ray terms
+    RayRobustLosses ray_robust{};
+    for (int t = 0; t < kNumLossTerms; ++t) ray_robust[t] = robust[t].get();
     Timer stage_timer;
     long rays_done = 0;
     if (!options.quiet) {
@@ -374,6 +410,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       // ---- The minibatch. ----
       for (ceres::ResidualBlockId id : batch_blocks) problem.RemoveResidualBlock(id);
       batch_blocks.clear();
+      regularizer_blocks.clear();
       std::vector<Ray> rays = sampler.Sample(stage.batch_rays, stage.samples_per_ray,
                                              stage.sampling, model, bounds_, &state->rng);
       if (stage.sampling.importance_depth) {
@@ -419,6 +456,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         batch_blocks.push_back(problem.AddResidualBlock(
             MakeEikonalCostFunction(model.field(), points, stage.losses.eikonal.weight).release(),
             eikonal_robust.get(), model.sdf()));
+        regularizer_blocks.push_back(batch_blocks.back());
       }
       if (B > 0 && stage.losses.bone_inside.weight > 0) {
         batch_blocks.push_back(problem.AddResidualBlock(
@@ -426,6 +464,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
                                        stage.losses.bone_inside.weight)
                 .release(),
             inside_robust.get(), model.sdf(), model.bones()));
+        regularizer_blocks.push_back(batch_blocks.back());
       }
       if (stage.losses.pose_smoothness.weight > 0) {
         std::set<std::pair<int, int>> frames;
@@ -438,11 +477,13 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
           batch_blocks.push_back(problem.AddResidualBlock(
               MakeRootSmoothnessCostFunction(a.root_init, b.root_init, w, w).release(),
               smooth_robust.get(), a.root_delta.data(), b.root_delta.data()));
+          regularizer_blocks.push_back(batch_blocks.back());
           used.insert(b.root_delta.data());
           if (B > 0) {
             batch_blocks.push_back(
                 problem.AddResidualBlock(MakeBoneSmoothnessCostFunction(B, w, w).release(),
                                          smooth_robust.get(), a.bones_t.data(), b.bones_t.data()));
+            regularizer_blocks.push_back(batch_blocks.back());
             used.insert(b.bones_t.data());
           }
         }
@@ -463,14 +504,50 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       };
       auto adam_step = [&](const std::vector<double*>& blocks) {
         if (blocks.empty()) return;
-        ceres::Problem::EvaluateOptions eo;
-        eo.parameter_blocks = blocks;
-        // Our cost functions only copy from the batch's cache; one thread keeps
-        // Ceres' gradient sums in a fixed order (bitwise-reproducible resume).
-        eo.num_threads = 1;
-        double cost = 0.0;
+        // The gradient of the cost in the tangent space of each block, in
+        // the order of `blocks`.
         std::vector<double> gradient;
-        CHECK(problem.Evaluate(eo, &cost, nullptr, &gradient, nullptr));
+        if (options.adam_gradient_from_ceres) {
+          ceres::Problem::EvaluateOptions eo;
+          eo.parameter_blocks = blocks;
+          // Our cost functions only copy from the batch's cache; one thread
+          // keeps Ceres' gradient sums in a fixed order (bitwise-reproducible
+          // resume).
+          eo.num_threads = 1;
+          double cost = 0.0;
+          CHECK(problem.Evaluate(eo, &cost, nullptr, &gradient, nullptr));
+        } else {
+          // Ray terms without their Jacobians (one cotangent row per ray),
+          // the regularisers from their cost functions; all sums in a fixed
+          // order (bitwise-reproducible resume).
+          std::map<const double*, Eigen::VectorXd> ambient;
+          batch.EvaluateGradient(ray_robust, &ambient);
+          for (ceres::ResidualBlockId id : regularizer_blocks) {
+            AddResidualBlockGradient(problem, id, &ambient);
+          }
+          for (double* p : blocks) {
+            const ceres::Manifold* manifold = problem.GetManifold(p);
+            const int size = problem.ParameterBlockSize(p);
+            const int tangent = manifold != nullptr ? manifold->TangentSize() : size;
+            const auto found = ambient.find(p);
+            if (found == ambient.end()) {  // no residual reads it
+              gradient.insert(gradient.end(), tangent, 0.0);
+              continue;
+            }
+            const Eigen::VectorXd& g = found->second;
+            CHECK_EQ(g.size(), size);
+            if (manifold == nullptr) {
+              gradient.insert(gradient.end(), g.data(), g.data() + size);
+              continue;
+            }
+            // g_tangent = PlusJacobian(x)^T g_ambient (chain rule through
+            // x + delta at delta = 0, as Ceres does).
+            RowMajorMatrix plus(size, tangent);
+            CHECK(manifold->PlusJacobian(p, plus.data()));
+            const Eigen::VectorXd gt = plus.transpose() * g;
+            gradient.insert(gradient.end(), gt.data(), gt.data() + tangent);
+          }
+        }
         const AdamConfig& a = stage.adam;
         const double lr = LearningRate(a, it, stage.iterations);
         size_t offset = 0;

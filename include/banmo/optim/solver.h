@@ -6,9 +6,12 @@
 //   lm        Ceres TRUST_REGION / LEVENBERG_MARQUARDT, CGNR (or
 //             ITERATIVE_SCHUR), one LM iteration per minibatch, the radius
 //             carried from batch to batch with a cap;
-//   adam      AdamW with a one-cycle schedule on the gradient from
-//             ceres::Problem::Evaluate (manifolds and constant blocks
-//             respected: steps are taken in the tangent space);
+//   adam      AdamW with a one-cycle schedule on the gradient of the
+//             problem's cost (RayBatch::EvaluateGradient for the ray terms,
+//             the regularisers' cost functions, each block's PlusJacobian:
+//             what ceres::Problem::Evaluate gives, without forming the rays'
+//             Jacobians; manifolds and constant blocks respected: steps are
+//             taken in the tangent space);
 //   alternate Adam on the field MLPs, then LM on the small coupled blocks
 //             (root poses, bones, bone transforms) with the fields constant.
 // Checkpoints are atomic, on a schedule and on SIGINT; a resumed run gives
@@ -54,6 +57,11 @@ struct SolveOptions {
   std::vector<std::string> extra_constant;
   // Stop after this many batches in total (for tests of resume; <0 = no limit).
   int stop_after_batches = -1;
+  // Adam's gradient from ceres::Problem::Evaluate (full per-row Jacobians of
+  // every ray term) instead of RayBatch::EvaluateGradient (one cotangent row
+  // per ray). Same gradient to rounding, several times slower; kept as the
+  // reference for tests and timings.
+  bool adam_gradient_from_ceres = false;
 };
 
 // Per-term mean losses (1/2 |r|^2 per ray, after weights) of the last batch.
