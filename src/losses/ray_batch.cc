@@ -301,10 +301,7 @@ double RayBatch::EvaluateGradient(const RayRobustLosses& robust,
   return cost;
 }
 
-namespace {
-
-// Block sizes of a ray's parameters.
-std::array<int, kNumRayBlocks> BlockSizes(const Model& m, const RayParameters& p) {
+std::array<int, kNumRayBlocks> RayBlockSizes(const Model& m, const RayParameters& p) {
   std::array<int, kNumRayBlocks> s{};
   s[kBlockSdf] = m.sdf_size();
   s[kBlockColor] = m.color_size();
@@ -322,8 +319,6 @@ std::array<int, kNumRayBlocks> BlockSizes(const Model& m, const RayParameters& p
   }
   return s;
 }
-
-}  // namespace
 
 void RayBatch::EvaluateRays(const std::vector<const Ray*>& rays,
                             const std::vector<RayParameters>& params, bool jacobians,
@@ -506,7 +501,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
         }
         if (cycle3d) ev.term_row[static_cast<int>(LossTerm::kCycle3d)] = R;
       }
-      const std::array<int, kNumRayBlocks> sizes = BlockSizes(model, p);
+      const std::array<int, kNumRayBlocks> sizes = RayBlockSizes(model, p);
       if (jacobians) {
         ev.has_jacobians = !gradient;
         for (int b = 0; b < kNumRayBlocks; ++b) {
@@ -890,7 +885,7 @@ class RayTermCostFunction final : public ceres::CostFunction {
         << "term " << LossTermName(term) << " is not active for ray " << index;
     set_num_residuals(LossTermResiduals(term, ray.NumSamples()));
     const RayParameters p = batch->ModelParameters(ray);
-    const std::array<int, kNumRayBlocks> sizes = BlockSizes(batch->model(), p);
+    const std::array<int, kNumRayBlocks> sizes = RayBlockSizes(batch->model(), p);
     for (RayBlock b : blocks_) mutable_parameter_block_sizes()->push_back(sizes[b]);
   }
 

@@ -25,18 +25,7 @@ class RayReferenceFunctor {
         term_(term),
         blocks_(batch.TermBlocks(index, term)),
         model_params_(batch.ModelParameters(ray_)) {
-    const Model& m = batch.model();
-    sizes_[kBlockSdf] = m.sdf_size();
-    sizes_[kBlockColor] = m.color_size();
-    sizes_[kBlockEmbedding] = m.embedding_size();
-    sizes_[kBlockLogBeta] = 1;
-    sizes_[kBlockAppearance] = m.appearance_size();
-    sizes_[kBlockRoot] = kPoseSize;
-    sizes_[kBlockBones] = m.bones_size();
-    sizes_[kBlockBonesT] = kPoseSize * m.num_bones();
-    sizes_[kBlockIntrinsics] = kIntrinsicsSize;
-    sizes_[kBlockPartnerRoot] = kPoseSize;
-    sizes_[kBlockPartnerBonesT] = kPoseSize * m.num_bones();
+    sizes_ = RayBlockSizes(batch.model(), model_params_);
   }
 
   const std::vector<RayBlock>& blocks() const { return blocks_; }

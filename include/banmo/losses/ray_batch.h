@@ -72,6 +72,9 @@ struct RayParameters {
   const double* partner_root_init = nullptr;  // G0^{t'} (data)
 };
 
+// Sizes of a ray's parameter blocks (0 for absent blocks).
+std::array<int, kNumRayBlocks> RayBlockSizes(const Model& model, const RayParameters& params);
+
 using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 // A ray's residuals and Jacobians: render-term rows first (LossTerm order),
