@@ -62,8 +62,6 @@ int RunSolve(int argc, char** argv) {
     ThrowInputError("--out ", out_dir,
                     ": folder exists and is not empty (use --overwrite or --resume)");
   }
-  MakeDirectories(out_dir);
-  WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));
 
   LoadOptions load;
   load.load_features = false;
@@ -77,6 +75,9 @@ int RunSolve(int argc, char** argv) {
   const Dataset dataset = LoadDataset(data_dir, load);
   std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
               dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
+  // Inputs are valid: only now is anything written.
+  MakeDirectories(out_dir);
+  WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));
 
   std::unique_ptr<Model> model = MakeModelForDataset(dataset, config.model);
   SolveOptions options;
