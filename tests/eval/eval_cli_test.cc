@@ -9,7 +9,7 @@
 
 #include "../io/test_dataset_util.h"
 #include "banmo/geometry/mesh_io.h"
-#include "run_banmo.h"
+#include "../common/run_banmo.h"
 #include "test_shapes.h"
 
 namespace banmo {

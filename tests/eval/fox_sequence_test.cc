@@ -21,7 +21,7 @@
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/synth/rig_library.h"
 #include "banmo/synth/scene.h"
-#include "run_banmo.h"
+#include "../common/run_banmo.h"
 
 namespace banmo {
 namespace {
