@@ -11,62 +11,28 @@
 #include <vector>
 
 #include "banmo/optim/solver.h"
-#include "banmo/synth/rig_library.h"
-#include "banmo/synth/scene.h"
+#include "tiny_solver_scene.h"
 
 namespace banmo {
 namespace {
 
-const Dataset& TinyDataset() {
-  static const synth::SynthScene scene = [] {
-    synth::SynthOptions o;
-    o.num_videos = 2;
-    o.frames_per_video = 6;
-    o.image_size = 48;
-    o.flow_gaps = {1, 2};
-    o.seed = 1;
-    return synth::RenderSyntheticScene(synth::LoadRig("quadruped"), o);
-  }();
-  return scene.dataset;
-}
+const Dataset& TinyDataset() { return testing::TinyQuadrupedDataset(1); }
 
 SolverConfig TinyAdamConfig(int iterations) {
-  SolverConfig c;
+  SolverConfig c = testing::TinySolverConfig("adam", iterations);
   c.seed = 5;
-  c.model.num_bones = 4;
-  c.model.field.position_encoding.num_bands = 4;
-  c.model.field.sdf_width = 32;
-  c.model.field.sdf_layers = 2;
-  c.model.field.color_width = 16;
-  c.model.field.color_layers = 1;
-  c.model.field.embedding_width = 16;
-  c.model.field.embedding_layers = 1;
-  c.model.field.appearance_code_dim = 2;
-  StageConfig s;
-  s.name = "tiny";
-  s.iterations = iterations;
-  s.step_rule = "adam";
+  StageConfig& s = c.stages[0];
   s.batch_rays = 64;
   s.samples_per_ray = 12;
-  s.adam.lr = 3e-3;
   s.adam.weight_decay = 1e-3;
-  s.sampling.flow_gaps = {1, 2};
-  s.sampling.eikonal_points = 32;
-  s.sampling.match_grid_points = 256;
-  s.sampling.match_top_k = 8;
   s.losses.rgb.robust = {"huber", 0.05};
   s.losses.cycle_3d.robust = {"cauchy", 0.1};
   s.losses.bone_inside.robust = {"soft_l1", 0.1};
   s.constant = {"intrinsics", "appearance"};
-  c.stages.push_back(s);
   return c;
 }
 
-std::vector<double> AllParameters(Model& m) {
-  std::vector<double> out;
-  m.ForEachBlock([&](const std::string&, double* d, int n) { out.insert(out.end(), d, d + n); });
-  return out;
-}
+using testing::AllParameters;
 
 std::vector<double> Solve(const SolverConfig& config, bool from_ceres) {
   const Dataset& data = TinyDataset();
