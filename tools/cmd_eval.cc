@@ -89,6 +89,11 @@ int RunEval(int argc, char** argv) {
   app.add_option("--max-scale-change", options.max_scale_change,
                  "Surface protocol: ICP scale stays within [s0/k, s0*k]")
       ->capture_default_str();
+  app.add_option("--gt-max-edge", options.gt_max_edge,
+                 "Banmo protocol: subdivide the ground truth (surface unchanged) until no edge "
+                 "is longer than this (normalised units, longest bbox edge 2; 0 = off, as "
+                 "BANMo's script). For coarse ground truths such as low-poly glTF models")
+      ->capture_default_str();
   bool one_sided = false;
   app.add_flag("--one-sided-icp", one_sided,
                "Surface protocol: only prediction->GT correspondences in ICP");

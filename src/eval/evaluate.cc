@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <vector>
 
 #include "banmo/eval/nearest_neighbors.h"
@@ -35,6 +36,7 @@ void EvalOptions::Check() const {
   if (!(max_scale_change >= 1.0)) {
     ThrowInputError("max_scale_change: must be >= 1, got ", max_scale_change);
   }
+  if (!(gt_max_edge >= 0.0)) ThrowInputError("gt_max_edge: must be >= 0, got ", gt_max_edge);
 }
 
 namespace {
@@ -75,6 +77,60 @@ Eigen::Vector3d RmsAboutCentroid(const Eigen::Matrix3Xd& points, double* rms) {
 
 }  // namespace
 
+TriangleMesh SubdivideToMaxEdge(const TriangleMesh& mesh, double max_edge, int max_rounds) {
+  CHECK_GT(max_edge, 0.0);
+  TriangleMesh current = mesh;
+  for (int round = 0; round < max_rounds; ++round) {
+    double longest = 0.0;
+    for (int f = 0; f < current.NumFaces(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        const int a = current.faces(k, f), b = current.faces((k + 1) % 3, f);
+        longest = std::max(longest, (current.vertices.col(a) - current.vertices.col(b)).norm());
+      }
+    }
+    if (longest <= max_edge) break;
+    std::map<std::pair<int, int>, int> midpoint;
+    std::vector<Eigen::Vector3d> vertices;
+    std::vector<Eigen::Vector3d> colors;
+    for (int v = 0; v < current.NumVertices(); ++v) {
+      vertices.push_back(current.vertices.col(v));
+      if (current.HasColors()) colors.push_back(current.colors.col(v).cast<double>());
+    }
+    auto mid = [&](int a, int b) {
+      const std::pair<int, int> key(std::min(a, b), std::max(a, b));
+      const auto it = midpoint.find(key);
+      if (it != midpoint.end()) return it->second;
+      vertices.push_back(0.5 * (current.vertices.col(a) + current.vertices.col(b)));
+      if (current.HasColors()) {
+        colors.push_back(
+            0.5 * (current.colors.col(a).cast<double>() + current.colors.col(b).cast<double>()));
+      }
+      return midpoint[key] = static_cast<int>(vertices.size()) - 1;
+    };
+    Eigen::Matrix3Xi faces(3, 4 * current.NumFaces());
+    for (int f = 0; f < current.NumFaces(); ++f) {
+      const int a = current.faces(0, f), b = current.faces(1, f), c = current.faces(2, f);
+      const int ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
+      faces.col(4 * f + 0) << a, ab, ca;
+      faces.col(4 * f + 1) << ab, b, bc;
+      faces.col(4 * f + 2) << ca, bc, c;
+      faces.col(4 * f + 3) << ab, bc, ca;
+    }
+    TriangleMesh next;
+    next.vertices.resize(3, vertices.size());
+    for (size_t v = 0; v < vertices.size(); ++v) next.vertices.col(v) = vertices[v];
+    next.faces = faces;
+    if (current.HasColors()) {
+      next.colors.resize(3, colors.size());
+      for (size_t v = 0; v < colors.size(); ++v) {
+        next.colors.col(v) = colors[v].array().round().cast<std::uint8_t>().matrix();
+      }
+    }
+    current = std::move(next);
+  }
+  return current;
+}
+
 FrameEval EvaluatePair(const TriangleMesh& pred, const TriangleMesh& gt, const EvalOptions& options,
                        const std::string& pred_name, const std::string& gt_name) {
   options.Check();
@@ -101,7 +157,9 @@ FrameEval EvaluatePair(const TriangleMesh& pred, const TriangleMesh& gt, const E
   Similarity init;
   if (!surface) {
     p = pred.vertices;
-    g = gt.vertices;
+    g = options.gt_max_edge > 0.0
+            ? SubdivideToMaxEdge(gt, options.gt_max_edge / out.gt_normalization).vertices
+            : gt.vertices;
     const double z_pred = MedianDepth(p);
     const double z_gt = MedianDepth(g);
     if (!(z_pred > 0.0)) {

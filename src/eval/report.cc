@@ -129,7 +129,8 @@ std::string FormatSummaryJson(const EvalReport& report, const EvalOptions& optio
      << ", \"num_samples\": " << options.num_samples
      << ", \"icp_max_queries\": " << options.icp_max_queries << ", \"seed\": " << options.seed
      << ", \"symmetric_icp\": " << (options.symmetric_icp ? "true" : "false")
-     << ", \"max_scale_change\": " << Num(options.max_scale_change) << "}\n";
+     << ", \"max_scale_change\": " << Num(options.max_scale_change)
+     << ", \"gt_max_edge\": " << Num(options.gt_max_edge) << "}\n";
   os << "}\n";
   return os.str();
 }

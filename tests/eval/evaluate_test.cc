@@ -175,3 +175,69 @@ TEST(EvaluateSequence, MeansWorstFramesAndCountMismatch) {
 
 }  // namespace
 }  // namespace banmo
+
+namespace banmo {
+namespace {
+
+// A square [-1, 1]^2 at depth z = 3, as `cells` x `cells` quads (2 triangles each).
+TriangleMesh Square(int cells) {
+  TriangleMesh m;
+  const int n = cells + 1;
+  m.vertices.resize(3, n * n);
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      m.vertices.col(j * n + i) << -1.0 + 2.0 * i / cells, -1.0 + 2.0 * j / cells, 3.0;
+    }
+  }
+  m.faces.resize(3, 2 * cells * cells);
+  int f = 0;
+  for (int j = 0; j < cells; ++j) {
+    for (int i = 0; i < cells; ++i) {
+      const int a = j * n + i, b = a + 1, c = a + n, d = c + 1;
+      m.faces.col(f++) << a, b, d;
+      m.faces.col(f++) << a, d, c;
+    }
+  }
+  return m;
+}
+
+TEST(SubdivideToMaxEdge, KeepsTheSurfaceAndBoundsEdges) {
+  const TriangleMesh coarse = Square(1);
+  const TriangleMesh fine = SubdivideToMaxEdge(coarse, 0.1);
+  double longest = 0.0;
+  for (int f = 0; f < fine.NumFaces(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      longest = std::max(longest, (fine.vertices.col(fine.faces(k, f)) -
+                                   fine.vertices.col(fine.faces((k + 1) % 3, f)))
+                                      .norm());
+    }
+  }
+  EXPECT_LE(longest, 0.1);
+  EXPECT_EQ(fine.NumFaces(), 2 * 4 * 4 * 4 * 4 * 4);  // 5 rounds: diagonal 2.83 -> 0.088
+  // Every vertex stays on the square (the same surface), and shared edges
+  // share their midpoints: the two triangles become the regular 33 x 33
+  // grid of 5 halvings of the side 2.
+  EXPECT_LT((fine.vertices.row(2).array() - 3.0).abs().maxCoeff(), 1e-15);
+  EXPECT_LE(fine.vertices.row(0).cwiseAbs().maxCoeff(), 1.0 + 1e-15);
+  EXPECT_EQ(fine.NumVertices(), 33 * 33);
+}
+
+TEST(EvaluatePair, GtSubdivisionRemovesTheVertexSamplingFloor) {
+  // A dense prediction (grid step 0.05) of exactly the ground truth's
+  // surface: against the 4-vertex ground truth the vertex protocol measures
+  // distances to corners (a floor of tens of cm); against the subdivided one
+  // (edges <= 0.05) only the two grids' own spacing remains (a few cm).
+  const TriangleMesh gt = Square(1);
+  const TriangleMesh pred = Square(40);
+  EvalOptions options;
+  options.icp_iterations = 0;
+  const FrameEval coarse = EvaluatePair(pred, gt, options);
+  options.gt_max_edge = 0.05;
+  const FrameEval fine = EvaluatePair(pred, gt, options);
+  EXPECT_GT(coarse.ChamferCm(), 30.0);
+  EXPECT_LT(fine.ChamferCm(), 5.0);
+  EXPECT_LT(fine.ChamferCm(), 0.1 * coarse.ChamferCm());
+}
+
+}  // namespace
+}  // namespace banmo

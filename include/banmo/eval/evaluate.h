@@ -51,6 +51,13 @@ struct EvalOptions {
   bool symmetric_icp = true;
   // Surface protocol: scale guard of ICP, see IcpOptions::max_scale_change.
   double max_scale_change = 4.0;
+  // Banmo protocol: if > 0, the ground truth is first subdivided at edge
+  // midpoints (the surface is unchanged) until no edge is longer than this,
+  // in normalised units (longest bounding-box edge 2). The protocol compares
+  // vertices only, so a coarse ground truth (e.g. a low-poly glTF) makes
+  // prediction-to-truth distances reach vertices instead of the surface;
+  // 0 (default) keeps BANMo's script's behaviour.
+  double gt_max_edge = 0.0;
 
   // Throws InputError naming the offending field.
   void Check() const;
@@ -88,6 +95,11 @@ struct EvalReport {
   std::array<int, 3> worst_fscore_frame{{-1, -1, -1}};
   int icp_converged_frames = 0;  // frames whose ICP met the tolerance
 };
+
+// Splits every triangle into four at its edge midpoints (shared edges share
+// their midpoint) until the longest edge is at most max_edge (> 0), at most
+// `max_rounds` times. The surface is unchanged; colours are averaged.
+TriangleMesh SubdivideToMaxEdge(const TriangleMesh& mesh, double max_edge, int max_rounds = 6);
 
 // Evaluates one predicted mesh against one ground-truth mesh. Throws
 // InputError naming pred_name / gt_name for empty meshes, non-finite vertices,
