@@ -286,6 +286,8 @@ SolveResult Solver::Run(const SolveOptions& options) {
 
 SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
   SolveResult result;
+  Timer run_timer;
+  double callback_seconds = 0.0;  // time inside options.on_batch (excluded from timings)
   Model& model = *model_;
   const int B = model.num_bones();
   RaySampler sampler(dataset_);
@@ -368,6 +370,11 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
     RayRobustLosses ray_robust{};
     for (int t = 0; t < kNumLossTerms; ++t) ray_robust[t] = robust[t].get();
     Timer stage_timer;
+    const double stage_callback_start = callback_seconds;
+    // Stage wall time without on_batch's own time.
+    auto stage_seconds = [&] {
+      return stage_timer.Seconds() - (callback_seconds - stage_callback_start);
+    };
     long rays_done = 0;
     if (!options.quiet) {
       std::printf("[%s] stage %d/%zu: %d batches x %d rays, %d samples, step rule %s\n",
@@ -666,7 +673,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       summary.last_losses = losses;
       const bool last = it + 1 == stage.iterations;
       if (!options.quiet && (it % std::max(1, stage.log_every) == 0 || last)) {
-        const double secs = stage_timer.Seconds();
+        const double secs = stage_seconds();
         const double rate = rays_done / std::max(secs, 1e-9);
         const double eta = (stage.iterations - it - 1) * stage.batch_rays / std::max(rate, 1e-9);
         std::printf("[%s] %5d/%d", stage.name.c_str(), it + 1, stage.iterations);
@@ -681,10 +688,23 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       if (stage.checkpoint_every > 0 && (it + 1) % stage.checkpoint_every == 0 && !last) {
         save(s, it + 1);
       }
+      if (options.on_batch) {
+        Timer callback_timer;
+        BatchProgress progress;
+        progress.stage = s;
+        progress.stage_name = stage.name;
+        progress.iteration = it + 1;
+        progress.stage_iterations = stage.iterations;
+        progress.total_batches = state->total_batches;
+        progress.solve_seconds = run_timer.Seconds() - callback_seconds;
+        progress.losses = losses;
+        options.on_batch(progress, model);
+        callback_seconds += callback_timer.Seconds();
+      }
     }
     for (ceres::ResidualBlockId id : batch_blocks) problem.RemoveResidualBlock(id);
     summary.iterations = stage.iterations - start;
-    summary.seconds = stage_timer.Seconds();
+    summary.seconds = stage_seconds();
     summary.rays_per_second = rays_done / std::max(summary.seconds, 1e-9);
     model.ForEachBlock([&](const std::string&, double* data, int size) {
       for (int k = 0; k < size; ++k) summary.finite = summary.finite && std::isfinite(data[k]);

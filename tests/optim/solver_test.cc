@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <vector>
 
 #include "banmo/optim/checkpoint.h"
 #include "banmo/util/error.h"
@@ -56,6 +57,35 @@ TEST(Solver, LmAndAlternateStepRulesRunAndStayFinite) {
     EXPECT_TRUE(r.stages[0].finite) << rule;
     EXPECT_LT(Total(r.stages[0].last_losses), 10.0 * Total(r.stages[0].first_losses)) << rule;
   }
+}
+
+TEST(Solver, OnBatchSeesEveryBatchInOrder) {
+  const Dataset& data = TinyDataset();
+  SolverConfig config = TinyConfig("adam", 5);
+  config.stages.push_back(config.stages[0]);
+  config.stages[1].name = "second";
+  config.stages[1].iterations = 3;
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  SolveOptions options;
+  options.quiet = true;
+  std::vector<BatchProgress> seen;
+  options.on_batch = [&](const BatchProgress& p, const Model& model) {
+    EXPECT_EQ(&model, &solver.model());
+    seen.push_back(p);
+  };
+  solver.Run(options);
+  ASSERT_EQ(seen.size(), 8u);
+  for (size_t i = 0; i < seen.size(); ++i) {
+    EXPECT_EQ(seen[i].total_batches, static_cast<int>(i) + 1);
+    EXPECT_EQ(seen[i].stage, i < 5 ? 0 : 1);
+    EXPECT_EQ(seen[i].iteration, i < 5 ? static_cast<int>(i) + 1 : static_cast<int>(i) - 4);
+    EXPECT_FALSE(seen[i].losses.empty());
+    if (i > 0) {
+      EXPECT_GE(seen[i].solve_seconds, seen[i - 1].solve_seconds);
+    }
+  }
+  EXPECT_EQ(seen.back().stage_name, "second");
+  EXPECT_EQ(seen.back().stage_iterations, 3);
 }
 
 TEST(Solver, ResumeGivesTheSameResultAsAnUninterruptedRun) {

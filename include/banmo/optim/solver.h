@@ -48,6 +48,20 @@ void CopySharedParameters(const Model& from, Model* to, const std::string& sourc
 // the interval lengths. Used by importance_depth sampling.
 void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng);
 
+// Per-term mean losses (1/2 |r|^2 per ray, after weights) of the last batch.
+using TermLosses = std::map<std::string, double>;
+
+// What SolveOptions::on_batch sees after each batch.
+struct BatchProgress {
+  int stage = 0;               // index into config.stages
+  std::string stage_name;      //
+  int iteration = 0;           // batches done in this stage (1-based)
+  int stage_iterations = 0;    // batches of this stage
+  int total_batches = 0;       // batches done in all stages
+  double solve_seconds = 0.0;  // wall time of this Run so far, without on_batch's own time
+  TermLosses losses;           // the batch's per-term losses
+};
+
 struct SolveOptions {
   std::string out_dir;  // checkpoints go to out_dir/checkpoint (empty: no checkpoints)
   bool resume = false;  // continue from out_dir/checkpoint
@@ -62,10 +76,11 @@ struct SolveOptions {
   // per ray). Same gradient to rounding, several times slower; kept as the
   // reference for tests and timings.
   bool adam_gradient_from_ceres = false;
+  // Called after every batch when set (benchmark traces: evaluate the model
+  // at chosen points). Its own run time is excluded from the stage timers,
+  // rays/s and BatchProgress::solve_seconds. It must not change the model.
+  std::function<void(const BatchProgress&, const Model&)> on_batch;
 };
-
-// Per-term mean losses (1/2 |r|^2 per ray, after weights) of the last batch.
-using TermLosses = std::map<std::string, double>;
 
 struct StageSummary {
   std::string name;
