@@ -74,6 +74,10 @@ int RunSynth(int argc, char** argv) {
   app.add_option("--feature-noise", options.feature_noise,
                  "Std of the per-channel feature noise (features are unit vectors)")
       ->capture_default_str();
+  app.add_option("--object-scale", options.object_scale,
+                 "Scale of the whole scene (object, camera distance, depth, ground truth); "
+                 "images are unchanged")
+      ->capture_default_str();
   app.add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   app.add_option("--out", out_dir, "Output dataset folder (must not exist or be empty)")
       ->required();

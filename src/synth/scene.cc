@@ -37,6 +37,7 @@ void SynthOptions::Check() const {
     fail("elevation_min_deg/elevation_max_deg", "-80 <= min <= max <= 80");
   }
   if (!(std::abs(elevation_wobble_deg) <= 10)) fail("elevation_wobble_deg", "|.| <= 10");
+  if (!(object_scale >= 1e-6 && object_scale <= 1e6)) fail("object_scale", "in [1e-6, 1e6]");
   if (!std::isfinite(root_yaw_wobble_deg)) fail("root_yaw_wobble_deg", "a finite number");
   if (!(root_drift >= 0 && root_drift <= 1)) fail("root_drift", "in [0, 1]");
   if (!(speed_jitter >= 0 && speed_jitter < 1)) fail("speed_jitter", "in [0, 1)");
@@ -391,7 +392,22 @@ SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
     });
     if (progress) progress(v + 1, nvid);
   }
+  if (options.object_scale != 1.0) ScaleScene(options.object_scale, &scene);
   return scene;
+}
+
+void ScaleScene(double s, SynthScene* scene) {
+  CHECK(s > 0 && std::isfinite(s)) << "scale " << s;
+  for (Video& video : scene->dataset.videos) {
+    for (Frame& frame : video.frames) {
+      frame.root_pose_init.tail<3>() *= s;
+      if (frame.root_pose_gt) frame.root_pose_gt->tail<3>() *= s;
+      if (!frame.depth.empty()) frame.depth *= s;
+    }
+  }
+  for (auto& meshes : scene->gt_meshes) {
+    for (TriangleMesh& mesh : meshes) mesh.vertices *= s;
+  }
 }
 
 }  // namespace banmo::synth

@@ -313,6 +313,41 @@ TEST(ScenePlan, NormalisationPoseNoiseAndCameraDistance) {
   }
 }
 
+// object_scale: the same images, every length times s (exact up to the
+// rounding of one multiplication: 1e-12 relative).
+TEST(Scene, ObjectScaleScalesLengthsAndKeepsImages) {
+  const Rig rig = LoadRig("quadruped");
+  SynthOptions o;
+  o.num_videos = 1;
+  o.frames_per_video = 3;
+  o.image_size = 32;
+  o.flow_gaps = {1};
+  o.pose_noise_deg = 10;
+  const SynthScene ref = RenderSyntheticScene(rig, o);
+  for (double s : {0.01, 100.0}) {
+    o.object_scale = s;
+    const SynthScene scaled = RenderSyntheticScene(rig, o);
+    for (int f = 0; f < o.frames_per_video; ++f) {
+      const Frame& a = ref.dataset.videos[0].frames[f];
+      const Frame& b = scaled.dataset.videos[0].frames[f];
+      EXPECT_EQ(cv::norm(a.rgb, b.rgb, cv::NORM_INF), 0);
+      EXPECT_EQ(cv::norm(a.mask, b.mask, cv::NORM_INF), 0);
+      EXPECT_LE(cv::norm(a.depth * s, b.depth, cv::NORM_INF), 1e-5 * s);  // float32 depth
+      for (int k = 0; k < kPoseSize; ++k) {
+        const double fs = k >= kPoseT ? s : 1.0;
+        EXPECT_NEAR(fs * a.root_pose_gt.value()[k], b.root_pose_gt.value()[k], 1e-12 * s * 10);
+        EXPECT_NEAR(fs * a.root_pose_init[k], b.root_pose_init[k], 1e-12 * s * 10);
+      }
+      EXPECT_LE((s * ref.gt_meshes[0][f].vertices - scaled.gt_meshes[0][f].vertices)
+                    .cwiseAbs()
+                    .maxCoeff(),
+                1e-12 * s * 10);
+    }
+  }
+  o.object_scale = 0;
+  EXPECT_THROW(o.Check(), InputError);
+}
+
 TEST(ScenePlan, BadOptionsAndAnimationNamesAreInputErrors) {
   const Rig rig = LoadRig("bird");
   SynthOptions o;

@@ -57,6 +57,11 @@ struct SynthOptions {
   double ambient = 0.35;              // ambient light fraction in [0, 1]; the rest is Lambert
   Eigen::Vector3d light_in_camera = Eigen::Vector3d(-0.3, -0.5, -1.0);  // towards the light
   Eigen::Vector3i background = Eigen::Vector3i(0, 0, 0);  // RGB of the background, [0, 255]
+  // Object scale s in [1e-6, 1e6]: the whole scene (root frame, camera
+  // distance, root-pose translations, depth, ground-truth meshes) is scaled by
+  // s after rendering, so images, masks, flow and features are unchanged and
+  // only lengths differ (the stability suite's tiny and huge objects).
+  double object_scale = 1.0;
 
   // Throws InputError naming the offending field and the expected range.
   void Check() const;
@@ -93,6 +98,12 @@ struct SynthScene {
   Dataset dataset;
   std::vector<std::vector<TriangleMesh>> gt_meshes;  // [video][frame], camera coordinates
 };
+
+// Multiplies every length of `scene` by s > 0: root-pose translations (ground
+// truth and rough), depth maps and ground-truth mesh vertices. With
+// x_camera = R x_root + t, scaling x_root and t by s scales x_camera by s and
+// leaves every projection unchanged. Used for SynthOptions::object_scale.
+void ScaleScene(double s, SynthScene* scene);
 
 // Renders the whole scene (both cores, frames in parallel). `progress`, if
 // set, is called after each video with (videos done, total videos).
