@@ -19,10 +19,12 @@ void SkinningWeights(int num_bones, const double* logits, double* weights) {
 }
 
 void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bones,
-                      const double* bones_t, const double* x, double* out, WarpJacobian* jacobian) {
+                      const double* bones_t, const double* x, double* out, WarpJacobian* jacobian,
+                      const double* delta_logits) {
   jacobian->d_x.setZero();
   jacobian->d_bones.setZero(3, kBoneSize * num_bones);
   jacobian->d_bones_t.setZero(3, kPoseSize * num_bones);
+  jacobian->d_delta_logits.setZero(3, delta_logits != nullptr ? num_bones : 0);
   if (num_bones == 0) {
     std::copy(x, x + 3, out);
     jacobian->d_x.setIdentity();
@@ -39,6 +41,7 @@ void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bone
     } else {
       ForwardBoneTerm(bone, pose, x, &logits[b], points.col(b).data());
     }
+    if (delta_logits != nullptr) logits[b] += delta_logits[b];
   }
   SkinningWeights(num_bones, logits.data(), w.data());
   const Eigen::Vector3d blended = points * Eigen::Map<const Eigen::VectorXd>(w.data(), num_bones);
@@ -71,6 +74,7 @@ void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bone
     jacobian->d_x += d_local.leftCols<3>();
     jacobian->d_bones.middleCols<kBoneSize>(kBoneSize * b) = d_local.middleCols<kBoneSize>(3);
     jacobian->d_bones_t.middleCols<kPoseSize>(kPoseSize * b) = d_local.rightCols<kPoseSize>();
+    if (delta_logits != nullptr) jacobian->d_delta_logits.col(b) = w[b] * lever;
   }
 }
 

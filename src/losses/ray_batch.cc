@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "banmo/deform/bones.h"
+#include "banmo/deform/delta_skinning.h"
 #include "banmo/losses/ray_functors.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
@@ -81,9 +82,20 @@ void AddProduct(RowMajorMatrix* jac, int row0, const Lhs& lhs, const Rhs& rhs) {
 }  // namespace
 
 const char* RayBlockName(RayBlock block) {
-  static const char* kNames[kNumRayBlocks] = {
-      "sdf",   "color",   "embedding",  "log_beta",     "appearance",     "root",
-      "bones", "bones_t", "intrinsics", "partner_root", "partner_bones_t"};
+  static const char* kNames[kNumRayBlocks] = {"sdf",
+                                              "color",
+                                              "embedding",
+                                              "log_beta",
+                                              "appearance",
+                                              "root",
+                                              "bones",
+                                              "bones_t",
+                                              "intrinsics",
+                                              "partner_root",
+                                              "partner_bones_t",
+                                              "delta_skinning",
+                                              "rest_pose_code",
+                                              "pose_code"};
   return kNames[block];
 }
 
@@ -100,6 +112,14 @@ void RayBatchOptions::Check() const {
 }
 
 // Per-ray intermediate values of one pipeline run.
+struct RayScratch;
+// Row `k` of the rays' delta-logit adjoints as batch cotangents: d_bw
+// (B x samples, backward warps) and d_fw (B x forward-batch columns); rays
+// with fewer rows contribute zeros. *any (optional): whether any is non-zero.
+static void GatherDeltaAdjoints(const std::vector<RayScratch>& scratch,
+                                const std::vector<int>& fw_groups, int num_bones, int k,
+                                Eigen::MatrixXd* d_bw, Eigen::MatrixXd* d_fw, bool* any);
+
 struct RayScratch {
   int num_samples = 0;
   int field_offset = 0;  // first column of the ray's samples in the field batch
@@ -115,12 +135,53 @@ struct RayScratch {
   Mat34 dview_dk = Mat34::Zero();
   Eigen::Vector3d x_hat = Eigen::Vector3d::Zero();
   RowMajorMatrix a_sdf, a_rgb, a_xhat;  // adjoints for the batched MLP backward
+  // Delta skinning: the ray's columns in the forward-warp batch (X*_i when
+  // the flow or the 3D cycle pushes them forward, then X_hat* for the 2D
+  // cycle), and the adjoints of the delta logits (rows x B per column) of the
+  // render rows (a_dbw: backward warp at sample i, a_dfw: forward batch
+  // column j) and of the 3D-cycle rows (3n x B each, sample i's rows 3i..).
+  int fw_offset = 0;
+  int fw_samples = 0;
+  int fw_hat = -1;  // column of X_hat* in the forward batch, -1 = none
+  RowMajorMatrix a_dbw, a_dfw, c3_dbw, c3_dfw;
 };
+
+static void GatherDeltaAdjoints(const std::vector<RayScratch>& scratch,
+                                const std::vector<int>& fw_groups, int num_bones, int k,
+                                Eigen::MatrixXd* d_bw, Eigen::MatrixXd* d_fw, bool* any) {
+  const int B = num_bones;
+  int total_samples = 0;
+  for (const RayScratch& s : scratch) total_samples += s.num_samples;
+  d_bw->setZero(B, total_samples);
+  d_fw->setZero(B, fw_groups.back());
+  if (any != nullptr) *any = false;
+  for (size_t r = 0; r < scratch.size(); ++r) {
+    const RayScratch& s = scratch[r];
+    if (k >= s.a_dbw.rows()) continue;
+    d_bw->middleCols(s.field_offset, s.num_samples) =
+        Eigen::Map<const Eigen::MatrixXd>(s.a_dbw.row(k).data(), B, s.num_samples);
+    const int count = fw_groups[r + 1] - fw_groups[r];
+    d_fw->middleCols(s.fw_offset, count) =
+        Eigen::Map<const Eigen::MatrixXd>(s.a_dfw.row(k).data(), B, count);
+    if (any != nullptr) {
+      *any = *any || s.a_dbw.row(k).squaredNorm() > 0 || s.a_dfw.row(k).squaredNorm() > 0;
+    }
+  }
+}
 
 RayBatch::RayBatch(Model* model, const RayBatchOptions& options)
     : model_(model), options_(options) {
   CHECK(model_ != nullptr);
   options_.Check();
+  delta_skinning_ = model_->has_delta_skinning();
+}
+
+void RayBatch::SetDeltaSkinning(bool on) {
+  on = on && model_->has_delta_skinning();
+  CHECK(on || !model_->DeltaSkinningIsNonZero())
+      << "delta skinning can only be left out while its output is zero";
+  if (on != delta_skinning_) cache_valid_ = false;
+  delta_skinning_ = on;
 }
 
 RayBatch::~RayBatch() = default;
@@ -200,6 +261,11 @@ RayParameters RayBatch::ModelParameters(const Ray& ray) const {
     p.partner_root_init = g.root_init.data();
     p.block[kBlockPartnerBonesT] = bones ? g.bones_t.data() : nullptr;
   }
+  if (delta_skinning_) {
+    p.block[kBlockDeltaSkin] = m.delta_skinning_params();
+    p.block[kBlockRestPoseCode] = m.rest_pose_code();
+    p.block[kBlockPoseCode] = f.pose_code.data();
+  }
   return p;
 }
 
@@ -209,25 +275,29 @@ std::vector<RayBlock> RayBatch::TermBlocks(int index, LossTerm term) const {
   std::vector<RayBlock> wanted;
   switch (term) {
     case LossTerm::kRgb:
-      wanted = {kBlockSdf,  kBlockColor, kBlockLogBeta, kBlockAppearance,
-                kBlockRoot, kBlockBones, kBlockBonesT,  kBlockIntrinsics};
+      wanted = {kBlockSdf,   kBlockColor,  kBlockLogBeta,    kBlockAppearance, kBlockRoot,
+                kBlockBones, kBlockBonesT, kBlockIntrinsics, kBlockDeltaSkin,  kBlockPoseCode};
       break;
     case LossTerm::kSilhouette:
-      wanted = {kBlockSdf, kBlockLogBeta, kBlockRoot, kBlockBones, kBlockBonesT, kBlockIntrinsics};
+      wanted = {kBlockSdf,    kBlockLogBeta,    kBlockRoot,      kBlockBones,
+                kBlockBonesT, kBlockIntrinsics, kBlockDeltaSkin, kBlockPoseCode};
       break;
     case LossTerm::kFlow:
-      wanted = {kBlockSdf,    kBlockLogBeta,    kBlockRoot,        kBlockBones,
-                kBlockBonesT, kBlockIntrinsics, kBlockPartnerRoot, kBlockPartnerBonesT};
+      wanted = {kBlockSdf,       kBlockLogBeta,      kBlockRoot,        kBlockBones,
+                kBlockBonesT,    kBlockIntrinsics,   kBlockPartnerRoot, kBlockPartnerBonesT,
+                kBlockDeltaSkin, kBlockRestPoseCode, kBlockPoseCode};
       break;
     case LossTerm::kFeatureMatch:
-      wanted = {kBlockSdf,   kBlockEmbedding, kBlockLogBeta,   kBlockRoot,
-                kBlockBones, kBlockBonesT,    kBlockIntrinsics};
+      wanted = {kBlockSdf,    kBlockEmbedding,  kBlockLogBeta,   kBlockRoot,    kBlockBones,
+                kBlockBonesT, kBlockIntrinsics, kBlockDeltaSkin, kBlockPoseCode};
       break;
     case LossTerm::kCycle2d:
-      wanted = {kBlockEmbedding, kBlockRoot, kBlockBones, kBlockBonesT, kBlockIntrinsics};
+      wanted = {kBlockEmbedding,  kBlockRoot,      kBlockBones,       kBlockBonesT,
+                kBlockIntrinsics, kBlockDeltaSkin, kBlockRestPoseCode};
       break;
     case LossTerm::kCycle3d:
-      wanted = {kBlockRoot, kBlockBones, kBlockBonesT, kBlockIntrinsics};
+      wanted = {kBlockRoot,      kBlockBones,        kBlockBonesT,  kBlockIntrinsics,
+                kBlockDeltaSkin, kBlockRestPoseCode, kBlockPoseCode};
       break;
   }
   std::vector<RayBlock> present;
@@ -274,7 +344,7 @@ double RayBatch::EvaluateGradient(const RayRobustLosses& robust,
   }
   std::vector<RayEvaluation> evals;
   std::vector<double> ray_cost;
-  std::array<Eigen::VectorXd, 3> mlp;
+  std::array<Eigen::VectorXd, 4> mlp;
   EvaluateRaysImpl(rays, params, false, &robust, &evals, &ray_cost, &mlp);
   auto add = [&](const double* block, const Eigen::Ref<const Eigen::VectorXd>& g) {
     Eigen::VectorXd& sum = (*gradient)[block];
@@ -287,7 +357,9 @@ double RayBatch::EvaluateGradient(const RayRobustLosses& robust,
   for (size_t r = 0; r < rays_.size(); ++r) {
     cost += ray_cost[r];
     for (int b = 0; b < kNumRayBlocks; ++b) {
-      if (b == kBlockSdf || b == kBlockColor || b == kBlockEmbedding) continue;
+      if (b == kBlockSdf || b == kBlockColor || b == kBlockEmbedding || b == kBlockDeltaSkin) {
+        continue;
+      }
       const RowMajorMatrix& row = evals[r].jacobians[b];
       if (params[r].block[b] == nullptr || row.cols() == 0) continue;
       add(params[r].block[b], row.row(0).transpose());
@@ -297,6 +369,7 @@ double RayBatch::EvaluateGradient(const RayRobustLosses& robust,
     add(model_->sdf(), mlp[0]);
     add(model_->color(), mlp[1]);
     if (model_->embedding_size() > 0) add(model_->embedding(), mlp[2]);
+    if (delta_skinning_) add(model_->delta_skinning_params(), mlp[3]);
   }
   return cost;
 }
@@ -314,6 +387,9 @@ std::array<int, kNumRayBlocks> RayBlockSizes(const Model& m, const RayParameters
   s[kBlockIntrinsics] = kIntrinsicsSize;
   s[kBlockPartnerRoot] = kPoseSize;
   s[kBlockPartnerBonesT] = kPoseSize * m.num_bones();
+  s[kBlockDeltaSkin] = m.delta_skinning_size();
+  s[kBlockRestPoseCode] = m.pose_code_size();
+  s[kBlockPoseCode] = m.pose_code_size();
   for (int b = 0; b < kNumRayBlocks; ++b) {
     if (p.block[b] == nullptr) s[b] = 0;
   }
@@ -330,7 +406,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
                                 const std::vector<RayParameters>& params, bool full_jacobians,
                                 const RayRobustLosses* robust, std::vector<RayEvaluation>* out,
                                 std::vector<double>* ray_cost,
-                                std::array<Eigen::VectorXd, 3>* mlp_gradient) const {
+                                std::array<Eigen::VectorXd, 4>* mlp_gradient) const {
   CHECK_EQ(rays.size(), params.size());
   // Gradient mode: one cotangent row per ray (c^T J) instead of full Jacobians.
   const bool gradient = robust != nullptr;
@@ -342,7 +418,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
   out->assign(num_rays, RayEvaluation());
   if (gradient) {
     ray_cost->assign(num_rays, 0.0);
-    for (int m = 0; m < 3; ++m) (*mlp_gradient)[m].resize(0);
+    for (auto& g : *mlp_gradient) g.resize(0);
   }
   if (num_rays == 0) return;
   const Model& model = *model_;
@@ -353,15 +429,21 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
   const double* sdf_params = params[0].block[kBlockSdf];
   const double* color_params = params[0].block[kBlockColor];
   const double* embedding_params = params[0].block[kBlockEmbedding];
+  const double* delta_params = params[0].block[kBlockDeltaSkin];
   for (const RayParameters& p : params) {
     CHECK(p.block[kBlockSdf] == sdf_params && p.block[kBlockColor] == color_params &&
-          p.block[kBlockEmbedding] == embedding_params)
+          p.block[kBlockEmbedding] == embedding_params && p.block[kBlockDeltaSkin] == delta_params)
         << "rays of one EvaluateRays call must share the MLP blocks";
   }
+  // Delta skinning (Eq. 14): logits of MLP_Delta added in every warp.
+  const DeltaSkinning* delta = delta_params != nullptr ? model.delta_skinning() : nullptr;
+  const int P = delta != nullptr ? delta->CodeDim() : 0;
+  const int DL = delta != nullptr ? delta->LocalDim() : 0;
 
   // Layout of the batched field and embedding passes.
   std::vector<RayScratch> scratch(num_rays);
   std::vector<int> field_groups(num_rays + 1, 0), match_groups(num_rays + 1, 0);
+  std::vector<int> fw_groups(num_rays + 1, 0);
   for (int r = 0; r < num_rays; ++r) {
     const Ray& ray = *rays[r];
     RayScratch& s = scratch[r];
@@ -377,9 +459,50 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
     s.num_match = match ? static_cast<int>(ray.match_indices.size()) : 0;
     s.match_offset = match_groups[r];
     match_groups[r + 1] = match_groups[r] + s.num_match;
+    s.fw_offset = fw_groups[r];
+    int fw_count = 0;
+    if (delta != nullptr) {
+      const bool push_samples =
+          ray.HasTerm(LossTerm::kFlow, weights) || ray.HasTerm(LossTerm::kCycle3d, weights);
+      s.fw_samples = push_samples ? s.num_samples : 0;
+      fw_count = s.fw_samples;
+      if (ray.HasTerm(LossTerm::kCycle2d, weights)) s.fw_hat = s.fw_offset + fw_count++;
+    }
+    fw_groups[r + 1] = fw_groups[r] + fw_count;
   }
   const int total_samples = field_groups[num_rays];
   const int total_match = match_groups[num_rays];
+  const int total_fw = fw_groups[num_rays];
+
+  // Pass 0 (delta skinning only, batched): MLP_Delta at every sample's
+  // time-t point with the frame's pose code, for the backward warps.
+  DeltaSkinningBatch bw, fw;
+  if (delta != nullptr) {
+    bw.x.resize(3, total_samples);
+    bw.codes.resize(P, total_samples);
+    ParallelFor(num_rays, [&](int begin, int end) {
+      for (int r = begin; r < end; ++r) {
+        const Ray& ray = *rays[r];
+        const RayParameters& p = params[r];
+        const RayScratch& s = scratch[r];
+        for (int i = 0; i < s.num_samples; ++i) {
+          SampleInRoot(p.block[kBlockRoot], p.root_init, p.block[kBlockIntrinsics], ray.uv.data(),
+                       ray.samples.depths[i], bw.x.col(s.field_offset + i).data());
+        }
+        bw.codes.middleCols(s.field_offset, s.num_samples) =
+            Eigen::Map<const Eigen::VectorXd>(p.block[kBlockPoseCode], P)
+                .replicate(1, s.num_samples);
+      }
+    });
+    delta->ForwardBatch(delta_params, &bw, jacobians);
+  }
+  // Delta logits of backward-warp sample `col` / forward-batch column `col`.
+  auto bw_logits = [&](int col) -> const double* {
+    return delta != nullptr ? bw.logits.col(col).data() : nullptr;
+  };
+  auto fw_logits = [&](int col) -> const double* {
+    return delta != nullptr ? fw.logits.col(col).data() : nullptr;
+  };
 
   FieldBatch fb;
   fb.x.resize(3, total_samples);
@@ -416,11 +539,12 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
             s.dxroot_dk[i].row(c) = x[c].v.tail<kIntrinsicsSize>().transpose();
           }
           WarpWithJacobian(WarpDirection::kBackward, B, p.block[kBlockBones], p.block[kBlockBonesT],
-                           s.x_root.col(i).data(), s.x_star.col(i).data(), &s.backward[i]);
+                           s.x_root.col(i).data(), s.x_star.col(i).data(), &s.backward[i],
+                           bw_logits(s.field_offset + i));
         } else {
           SampleInRoot(root, p.root_init, intr, ray.uv.data(), depth, s.x_root.col(i).data());
           BackwardWarp(B, p.block[kBlockBones], p.block[kBlockBonesT], s.x_root.col(i).data(),
-                       s.x_star.col(i).data());
+                       s.x_star.col(i).data(), bw_logits(s.field_offset + i));
         }
       }
       if (jacobians) {
@@ -467,6 +591,21 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
       SoftArgmax(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
                  options_.matcher.temperature, scratch[r].x_hat.data());
     }
+  }
+  // Delta skinning, forward warps: MLP_Delta at the canonical points pushed
+  // forward (X*_i, X_hat*) with the rest-pose code.
+  if (delta != nullptr && total_fw > 0) {
+    fw.x.resize(3, total_fw);
+    fw.codes.resize(P, total_fw);
+    for (int r = 0; r < num_rays; ++r) {
+      const RayScratch& s = scratch[r];
+      const Eigen::Map<const Eigen::VectorXd> rest_code(params[r].block[kBlockRestPoseCode], P);
+      fw.x.middleCols(s.fw_offset, s.fw_samples) = s.x_star.leftCols(s.fw_samples);
+      if (s.fw_hat >= 0) fw.x.col(s.fw_hat) = s.x_hat;
+      const int count = fw_groups[r + 1] - fw_groups[r];
+      fw.codes.middleCols(s.fw_offset, count) = rest_code.replicate(1, count);
+    }
+    delta->ForwardBatch(delta_params, &fw, jacobians);
   }
 
   // Pass 3 (per ray): forward warps, projections, the render functor with
@@ -532,12 +671,13 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
           Eigen::Vector2d uv2;
           if (jacobians) {
             WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockPartnerBonesT],
-                             s.x_star.col(i).data(), x_t2.data(), &flow_warp[i]);
+                             s.x_star.col(i).data(), x_t2.data(), &flow_warp[i],
+                             fw_logits(s.fw_offset + i));
             ProjectWithJacobian(p.block[kBlockPartnerRoot], p.partner_root_init, intr, x_t2.data(),
                                 uv2.data(), &flow_proj[i]);
           } else {
-            ForwardWarp(B, bones, p.block[kBlockPartnerBonesT], s.x_star.col(i).data(),
-                        x_t2.data());
+            ForwardWarp(B, bones, p.block[kBlockPartnerBonesT], s.x_star.col(i).data(), x_t2.data(),
+                        fw_logits(s.fw_offset + i));
             ProjectRootPoint(p.block[kBlockPartnerRoot], p.partner_root_init, intr, x_t2.data(),
                              uv2.data());
           }
@@ -556,11 +696,12 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
         Eigen::Vector2d uv_c;
         if (jacobians) {
           WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT], s.x_hat.data(),
-                           x_t.data(), &cycle_warp);
+                           x_t.data(), &cycle_warp, fw_logits(s.fw_hat));
           ProjectWithJacobian(p.block[kBlockRoot], p.root_init, intr, x_t.data(), uv_c.data(),
                               &cycle_proj);
         } else {
-          ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_hat.data(), x_t.data());
+          ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_hat.data(), x_t.data(),
+                      fw_logits(s.fw_hat));
           ProjectRootPoint(p.block[kBlockRoot], p.root_init, intr, x_t.data(), uv_c.data());
         }
         u[L.cycle_projection + 0] = uv_c[0];
@@ -608,7 +749,8 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
         if (cycle3d) {
           for (int i = 0; i < n; ++i) {
             Eigen::Vector3d q;
-            ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_star.col(i).data(), q.data());
+            ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_star.col(i).data(), q.data(),
+                        fw_logits(s.fw_offset + i));
             Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), p.block[kBlockRoot], p.root_init,
                             intr, ray.uv.data(), ray.samples.depths[i], q.data(),
                             ev.residuals.data() + R + 3 * i);
@@ -625,6 +767,30 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
       s.a_sdf = RowMajorMatrix::Zero(Rc, n);
       s.a_rgb = RowMajorMatrix::Zero(Rc, 3 * n);
       s.a_xhat = RowMajorMatrix::Zero(Rc, 3);
+      if (delta != nullptr) {
+        // Gradient mode: one cotangent row shared by the render and 3D-cycle terms.
+        const int rows = gradient ? 1 : Rc;
+        s.a_dbw = RowMajorMatrix::Zero(rows, B * n);
+        s.a_dfw = RowMajorMatrix::Zero(rows, B * (fw_groups[r + 1] - fw_groups[r]));
+        if (cycle3d && !gradient) {
+          s.c3_dbw = RowMajorMatrix::Zero(3 * n, B);
+          s.c3_dfw = RowMajorMatrix::Zero(3 * n, B);
+        }
+      }
+      // Chains adjoints a (rows x 3) of a warp's output through its delta
+      // logits: a_dl = a dOut/dlogits (rows x B) goes to the batch column's
+      // adjoint (*a_logits, rows x B), to the warp input's adjoint (*a_in,
+      // rows x 3) and to the pose-code block's Jacobian rows.
+      auto chain_delta = [&](const Eigen::Ref<const RowMajorMatrix>& a, const WarpJacobian& wj,
+                             const DeltaSkinningBatch& batch, int col, RayBlock code_block,
+                             int row0, Eigen::Ref<RowMajorMatrix> a_logits,
+                             Eigen::Ref<RowMajorMatrix> a_in) {
+        const RowMajorMatrix a_dl = a * wj.d_delta_logits;
+        const auto jd = batch.jacobian.middleCols(static_cast<Eigen::Index>(DL) * col, DL);
+        a_in.noalias() += a_dl * jd.leftCols<3>();
+        AddProduct(&jac[code_block], row0, a_dl, jd.rightCols(P));
+        a_logits += a_dl;
+      };
       if (Rc > 0) {
         s.a_sdf = D.middleCols(L.sdf, n);
         if (L.has_rgb) s.a_rgb = D.middleCols(L.rgb, 3 * n);
@@ -660,6 +826,10 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
           a_xstar.middleCols<3>(3 * i).noalias() += a_p * flow_warp[i].d_x;
           AddProduct(&jac[kBlockBones], 0, a_p, flow_warp[i].d_bones);
           AddProduct(&jac[kBlockPartnerBonesT], 0, a_p, flow_warp[i].d_bones_t);
+          if (delta != nullptr) {
+            chain_delta(a_p, flow_warp[i], fw, s.fw_offset + i, kBlockRestPoseCode, 0,
+                        s.a_dfw.block(0, B * i, a_p.rows(), B), a_xstar.middleCols<3>(3 * i));
+          }
         }
       }
       // 2D cycle: Pi_t(G^t W^{t,->}(X_hat*)).
@@ -671,11 +841,19 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
         s.a_xhat.noalias() += a_p * cycle_warp.d_x;
         AddProduct(&jac[kBlockBones], 0, a_p, cycle_warp.d_bones);
         AddProduct(&jac[kBlockBonesT], 0, a_p, cycle_warp.d_bones_t);
+        if (delta != nullptr) {
+          chain_delta(a_p, cycle_warp, fw, s.fw_hat, kBlockRestPoseCode, 0,
+                      s.a_dfw.block(0, B * (s.fw_hat - s.fw_offset), a_p.rows(), B), s.a_xhat);
+        }
       }
       // Backward warp and sample placement of every X*_i.
       for (int i = 0; i < n && Rc > 0; ++i) {
         const auto a_x = a_xstar.middleCols<3>(3 * i);
-        const Eigen::Matrix<double, Eigen::Dynamic, 3> a_root_pt = a_x * s.backward[i].d_x;
+        RowMajorMatrix a_root_pt = a_x * s.backward[i].d_x;
+        if (delta != nullptr) {
+          chain_delta(a_x, s.backward[i], bw, s.field_offset + i, kBlockPoseCode, 0,
+                      s.a_dbw.block(0, B * i, Rc, B), a_root_pt);
+        }
         AddProduct(&jac[kBlockBones], 0, a_x, s.backward[i].d_bones);
         AddProduct(&jac[kBlockBonesT], 0, a_x, s.backward[i].d_bones_t);
         AddProduct(&jac[kBlockRoot], 0, a_root_pt, s.dxroot_droot[i]);
@@ -695,7 +873,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
         for (int i = 0; i < n; ++i) {
           Eigen::Vector3d q;
           WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT],
-                           s.x_star.col(i).data(), q.data(), &qjs[i]);
+                           s.x_star.col(i).data(), q.data(), &qjs[i], fw_logits(s.fw_offset + i));
           J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
           SeedJets(q.data(), 3, 0, qj_jet);
           SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
@@ -721,10 +899,18 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
                      Eigen::Matrix<double, kPoseSize, kPoseSize>::Identity());
           AddProduct(&jac[kBlockIntrinsics], 0, e.rightCols<kIntrinsicsSize>(),
                      Eigen::Matrix<double, kIntrinsicsSize, kIntrinsicsSize>::Identity());
-          const Eigen::Matrix<double, 1, 3> a_x = a_q * qjs[i].d_x;
+          RowMajorMatrix a_x = a_q * qjs[i].d_x;
           AddProduct(&jac[kBlockBones], 0, a_q, qjs[i].d_bones);
           AddProduct(&jac[kBlockBonesT], 0, a_q, qjs[i].d_bones_t);
-          const Eigen::Matrix<double, 1, 3> a_root_pt = a_x * s.backward[i].d_x;
+          if (delta != nullptr) {
+            chain_delta(a_q, qjs[i], fw, s.fw_offset + i, kBlockRestPoseCode, 0,
+                        s.a_dfw.block(0, B * i, 1, B), a_x);
+          }
+          RowMajorMatrix a_root_pt = a_x * s.backward[i].d_x;
+          if (delta != nullptr) {
+            chain_delta(a_x, s.backward[i], bw, s.field_offset + i, kBlockPoseCode, 0,
+                        s.a_dbw.block(0, B * i, 1, B), a_root_pt);
+          }
           AddProduct(&jac[kBlockBones], 0, a_x, s.backward[i].d_bones);
           AddProduct(&jac[kBlockBonesT], 0, a_x, s.backward[i].d_bones_t);
           AddProduct(&jac[kBlockRoot], 0, a_root_pt, s.dxroot_droot[i]);
@@ -740,7 +926,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
           Eigen::Vector3d q;
           WarpJacobian qj;
           WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT],
-                           s.x_star.col(i).data(), q.data(), &qj);
+                           s.x_star.col(i).data(), q.data(), &qj, fw_logits(s.fw_offset + i));
           J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
           SeedJets(q.data(), 3, 0, qj_jet);
           SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
@@ -757,10 +943,18 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
                      Eigen::Matrix<double, kPoseSize, kPoseSize>::Identity());
           AddProduct(&jac[kBlockIntrinsics], row0, E.rightCols<kIntrinsicsSize>(),
                      Eigen::Matrix<double, kIntrinsicsSize, kIntrinsicsSize>::Identity());
-          const Eigen::Matrix3d a_x = a_q * qj.d_x;
+          RowMajorMatrix a_x = a_q * qj.d_x;
           AddProduct(&jac[kBlockBones], row0, a_q, qj.d_bones);
           AddProduct(&jac[kBlockBonesT], row0, a_q, qj.d_bones_t);
-          const Eigen::Matrix3d a_root_pt = a_x * s.backward[i].d_x;
+          if (delta != nullptr) {
+            chain_delta(a_q, qj, fw, s.fw_offset + i, kBlockRestPoseCode, row0,
+                        s.c3_dfw.middleRows(3 * i, 3), a_x);
+          }
+          RowMajorMatrix a_root_pt = a_x * s.backward[i].d_x;
+          if (delta != nullptr) {
+            chain_delta(a_x, s.backward[i], bw, s.field_offset + i, kBlockPoseCode, row0,
+                        s.c3_dbw.middleRows(3 * i, 3), a_root_pt);
+          }
           AddProduct(&jac[kBlockBones], row0, a_x, s.backward[i].d_bones);
           AddProduct(&jac[kBlockBonesT], row0, a_x, s.backward[i].d_bones_t);
           AddProduct(&jac[kBlockRoot], row0, a_root_pt, s.dxroot_droot[i]);
@@ -806,6 +1000,16 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
       field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, {0, total_match},
                                    &d_embedding_params);
       (*mlp_gradient)[2] = d_embedding_params.col(0);
+    }
+    if (delta != nullptr) {
+      Eigen::MatrixXd d_bw, d_fw, g;
+      GatherDeltaAdjoints(scratch, fw_groups, B, 0, &d_bw, &d_fw, nullptr);
+      delta->BackwardBatch(delta_params, bw, d_bw, {0, total_samples}, &g);
+      (*mlp_gradient)[3] = g.col(0);
+      if (total_fw > 0) {
+        delta->BackwardBatch(delta_params, fw, d_fw, {0, total_fw}, &g);
+        (*mlp_gradient)[3] += g.col(0);
+      }
     }
     return;
   }
@@ -859,6 +1063,71 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
       for (int r = 0; r < num_rays; ++r) {
         if (k >= scratch[r].render_rows || scratch[r].num_match == 0) continue;
         (*out)[r].jacobians[kBlockEmbedding].row(k) = d_embedding_params.col(r).transpose();
+      }
+    }
+    if (delta != nullptr) {
+      Eigen::MatrixXd d_bw, d_fw, g_bw, g_fw;
+      bool any = false;
+      GatherDeltaAdjoints(scratch, fw_groups, B, k, &d_bw, &d_fw, &any);
+      if (any) {
+        delta->BackwardBatch(delta_params, bw, d_bw, field_groups, &g_bw);
+        if (total_fw > 0) delta->BackwardBatch(delta_params, fw, d_fw, fw_groups, &g_fw);
+        for (int r = 0; r < num_rays; ++r) {
+          if (k >= scratch[r].render_rows) continue;
+          auto row = (*out)[r].jacobians[kBlockDeltaSkin].row(k);
+          row = g_bw.col(r).transpose();
+          if (total_fw > 0) row += g_fw.col(r).transpose();
+        }
+      }
+    }
+  }
+
+  // MLP_Delta weight Jacobians of the 3D-cycle rows: row (i, c) of a ray
+  // depends on two batch columns only (the backward warp at sample i, the
+  // forward warp of X*_i), so for each sample index i the rays' two columns
+  // are re-evaluated as a compact batch (one group per ray) and differentiated
+  // once per coordinate c, instead of a pass over the whole minibatch per row.
+  if (delta != nullptr) {
+    int max_n = 0;
+    for (const RayScratch& s : scratch) {
+      if (s.c3_dbw.rows() > 0) max_n = std::max(max_n, s.num_samples);
+    }
+    for (int i = 0; i < max_n; ++i) {
+      std::vector<int> members;
+      for (int r = 0; r < num_rays; ++r) {
+        if (scratch[r].c3_dbw.rows() > 0 && i < scratch[r].num_samples) members.push_back(r);
+      }
+      const int m = static_cast<int>(members.size());
+      DeltaSkinningBatch cb, cf;
+      cb.x.resize(3, m);
+      cb.codes.resize(P, m);
+      cf.x.resize(3, m);
+      cf.codes.resize(P, m);
+      for (int j = 0; j < m; ++j) {
+        const RayScratch& s = scratch[members[j]];
+        cb.x.col(j) = bw.x.col(s.field_offset + i);
+        cb.codes.col(j) = bw.codes.col(s.field_offset + i);
+        cf.x.col(j) = fw.x.col(s.fw_offset + i);
+        cf.codes.col(j) = fw.codes.col(s.fw_offset + i);
+      }
+      delta->ForwardBatch(delta_params, &cb, false);
+      delta->ForwardBatch(delta_params, &cf, false);
+      std::vector<int> groups(m + 1);
+      for (int j = 0; j <= m; ++j) groups[j] = j;
+      Eigen::MatrixXd d_b(B, m), d_f(B, m), g_b, g_f;
+      for (int c = 0; c < 3; ++c) {
+        for (int j = 0; j < m; ++j) {
+          const RayScratch& s = scratch[members[j]];
+          d_b.col(j) = s.c3_dbw.row(3 * i + c).transpose();
+          d_f.col(j) = s.c3_dfw.row(3 * i + c).transpose();
+        }
+        delta->BackwardBatch(delta_params, cb, d_b, groups, &g_b);
+        delta->BackwardBatch(delta_params, cf, d_f, groups, &g_f);
+        for (int j = 0; j < m; ++j) {
+          RayEvaluation& ev = (*out)[members[j]];
+          const int row = ev.term_row[static_cast<int>(LossTerm::kCycle3d)] + 3 * i + c;
+          ev.jacobians[kBlockDeltaSkin].row(row) = (g_b.col(j) + g_f.col(j)).transpose();
+        }
       }
     }
   }

@@ -52,6 +52,18 @@ class RayReferenceFunctor {
     const T* root = block[kBlockRoot];
     const T* intr = block[kBlockIntrinsics];
     const T* bones = block[kBlockBones];
+    // Delta skinning (Eq. 14): MLP_Delta logits at the warp's input point,
+    // with omega^t (backward) or omega^* (forward); null without it.
+    const DeltaSkinning* delta =
+        block[kBlockDeltaSkin] != nullptr ? model.delta_skinning() : nullptr;
+    std::vector<T> delta_logits(delta != nullptr ? B : 0);
+    auto delta_at = [&](const T* x, const T* code) -> const T* {
+      if (delta == nullptr) return nullptr;
+      delta->Logits(block[kBlockDeltaSkin], x, code, delta_logits.data());
+      return delta_logits.data();
+    };
+    const T* pose_code = block[kBlockPoseCode];
+    const T* rest_code = block[kBlockRestPoseCode];
 
     const RayRenderFunctor render(ray_, weights);
     const RenderLocals& L = render.locals();
@@ -63,7 +75,8 @@ class RayReferenceFunctor {
       T x_root[3];
       SampleInRoot(root, model_params_.root_init, intr, ray_.uv.data(), ray_.samples.depths[i],
                    x_root);
-      BackwardWarp(B, bones, block[kBlockBonesT], x_root, &x_star[3 * i]);
+      BackwardWarp(B, bones, block[kBlockBonesT], x_root, &x_star[3 * i],
+                   delta_at(x_root, pose_code));
       T sdf, rgb[3];
       field.Evaluate(block[kBlockSdf], block[kBlockColor], &x_star[3 * i], view,
                      block[kBlockAppearance], &sdf, rgb);
@@ -76,7 +89,8 @@ class RayReferenceFunctor {
       }
       if (L.has_displacement) {
         T x_t2[3], uv2[2];
-        ForwardWarp(B, bones, block[kBlockPartnerBonesT], &x_star[3 * i], x_t2);
+        ForwardWarp(B, bones, block[kBlockPartnerBonesT], &x_star[3 * i], x_t2,
+                    delta_at(&x_star[3 * i], rest_code));
         ProjectRootPoint(block[kBlockPartnerRoot], model_params_.partner_root_init, intr, x_t2,
                          uv2);
         u[L.displacement + 2 * i + 0] = uv2[0] - T(ray_.uv[0]);
@@ -106,7 +120,7 @@ class RayReferenceFunctor {
       }
       if (L.has_cycle) {
         T x_t[3];
-        ForwardWarp(B, bones, block[kBlockBonesT], x_hat, x_t);
+        ForwardWarp(B, bones, block[kBlockBonesT], x_hat, x_t, delta_at(x_hat, rest_code));
         ProjectRootPoint(root, model_params_.root_init, intr, x_t, &u[L.cycle_projection]);
       }
     }
@@ -133,7 +147,8 @@ class RayReferenceFunctor {
     }
     for (int i = 0; i < n; ++i) {
       T q[3];
-      ForwardWarp(B, bones, block[kBlockBonesT], &x_star[3 * i], q);
+      ForwardWarp(B, bones, block[kBlockBonesT], &x_star[3 * i], q,
+                  delta_at(&x_star[3 * i], rest_code));
       Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), root, model_params_.root_init, intr,
                       ray_.uv.data(), ray_.samples.depths[i], q, residuals + 3 * i);
     }

@@ -26,6 +26,14 @@ TestScene MakeTestScene(const TestSceneOptions& o) {
   mo.field.init_sphere_radius = 0.3;
   mo.init_beta = 0.15;
   mo.seed = o.seed;
+  if (o.delta_skinning) {
+    mo.delta_skinning.enabled = true;
+    mo.delta_skinning.width = o.mlp_width;
+    mo.delta_skinning.hidden_layers = 1;
+    mo.delta_skinning.num_bands = 1;
+    mo.delta_skinning.pose_code_dim = 3;
+    mo.delta_skinning.code_init_std = 0.5;
+  }
   PinholeCamera camera;
   camera.width = camera.height = 64;
   camera.intrinsics << 80.0, 82.0, 32.0, 31.0;
@@ -55,6 +63,15 @@ TestScene MakeTestScene(const TestSceneOptions& o) {
     for (int k = 0; k < 3; ++k) bone[kBoneLogScale + k] += 0.3 * u(rng);
   }
   for (double& a : m.video(0).appearance) a = 0.5 * u(rng);
+  if (m.has_delta_skinning()) {
+    // Output layer random: delta logits of order 1 (the Gaussian logits here
+    // are of order 1 too), so both components shape the weights.
+    const Mlp& mlp = m.delta_skinning()->mlp();
+    const int last = mlp.NumLinearLayers() - 1;
+    for (int k = mlp.WeightOffset(last); k < mlp.NumParameters(); ++k) {
+      m.delta_skinning_params()[k] = 0.8 * u(rng);
+    }
+  }
   *m.log_beta() += 0.2 * u(rng);
 
   RayBatchOptions bo;

@@ -1,6 +1,7 @@
 #include "banmo/model/model.h"
 
 #include <cmath>
+#include <random>
 
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
@@ -14,6 +15,12 @@ void ModelOptions::Check() const {
   }
   if (!(init_bone_scale > 0)) ThrowInputError("model.init_bone_scale: expected > 0");
   if (!(init_beta > 0)) ThrowInputError("model.init_beta: expected > 0");
+  if (delta_skinning.enabled) {
+    delta_skinning.Check();
+    if (num_bones < 1) {
+      ThrowInputError("model.delta_skinning.enabled: delta skinning needs num_bones >= 1");
+    }
+  }
 }
 
 Model::Model(const ModelOptions& options, const std::vector<int>& frames_per_video,
@@ -40,6 +47,25 @@ Model::Model(const ModelOptions& options, const std::vector<int>& frames_per_vid
   bones_.resize(kBoneSize * B);
   InitializeBones(centres, options.init_bone_scale, bones_.data());
 
+  // Delta skinning: MLP with a zero output layer, small random pose codes
+  // (portable: uniform draws from the raw mt19937 stream, scaled to the
+  // requested standard deviation).
+  std::mt19937 code_rng(options.seed + 7919u);
+  auto random_code = [&](std::vector<double>* code) {
+    const int P = options.delta_skinning.pose_code_dim;
+    code->resize(P);
+    for (int k = 0; k < P; ++k) {
+      const double u = (static_cast<double>(code_rng()) + 0.5) / 4294967296.0;  // (0, 1)
+      (*code)[k] = options.delta_skinning.code_init_std * std::sqrt(3.0) * (2.0 * u - 1.0);
+    }
+  };
+  if (options.delta_skinning.enabled) {
+    delta_ = std::make_unique<DeltaSkinning>(options.delta_skinning, B);
+    delta_params_.resize(delta_->NumParameters());
+    delta_->InitializeParameters(options.seed + 104729u, delta_params_.data());
+    random_code(&rest_pose_code_);
+  }
+
   videos_.resize(frames_per_video.size());
   for (size_t v = 0; v < videos_.size(); ++v) {
     videos_[v].camera = cameras[v];
@@ -49,8 +75,13 @@ Model::Model(const ModelOptions& options, const std::vector<int>& frames_per_vid
     for (auto& f : videos_[v].frames) {
       f.bones_t.resize(kPoseSize * B);
       for (int b = 0; b < B; ++b) PoseSetIdentity(f.bones_t.data() + kPoseSize * b);
+      if (delta_) random_code(&f.pose_code);
     }
   }
+}
+
+bool Model::DeltaSkinningIsNonZero() const {
+  return delta_ != nullptr && !delta_->IsZero(delta_params_.data());
 }
 
 Pose Model::RootPose(int v, int t) const {
@@ -67,6 +98,10 @@ void Model::ForEachBlock(
   fn("embedding", embedding_.data(), embedding_size());
   fn("log_beta", &log_beta_, 1);
   fn("bones", bones_.data(), bones_size());
+  if (delta_) {
+    fn("delta_skinning", delta_params_.data(), delta_skinning_size());
+    fn("rest_pose_code", rest_pose_code_.data(), pose_code_size());
+  }
   for (size_t v = 0; v < videos_.size(); ++v) {
     const std::string video = "video" + std::to_string(v);
     fn(video + "/intrinsics", videos_[v].intrinsics.data(), 4);
@@ -77,6 +112,7 @@ void Model::ForEachBlock(
       fn(frame + "/root_delta", f.root_delta.data(), kPoseSize);
       fn(frame + "/root_init", f.root_init.data(), kPoseSize);
       fn(frame + "/bones_t", f.bones_t.data(), static_cast<int>(f.bones_t.size()));
+      if (delta_) fn(frame + "/pose_code", f.pose_code.data(), pose_code_size());
     }
   }
 }

@@ -71,6 +71,7 @@ struct Case {
   const char* name;
   int num_bones;
   bool huber;  // Huber(0.1) on rgb, flow and the 3D cycle; others plain
+  bool delta_skinning = false;
 };
 
 class RayGradient : public ::testing::TestWithParam<Case> {};
@@ -79,6 +80,7 @@ TEST_P(RayGradient, EqualsRhoPrimeJacobianTransposeResidual) {
   const Case c = GetParam();
   TestSceneOptions o;
   o.num_bones = c.num_bones;
+  o.delta_skinning = c.delta_skinning;
   TestScene scene = MakeTestScene(o);
   RayBatch& batch = *scene.batch;
   ceres::HuberLoss huber(0.1);
@@ -112,6 +114,7 @@ TEST_P(RayGradient, EqualsCeresProblemEvaluateWithConstantBlocks) {
   const Case c = GetParam();
   TestSceneOptions o;
   o.num_bones = c.num_bones;
+  o.delta_skinning = c.delta_skinning;
   TestScene scene = MakeTestScene(o);
   Model& model = *scene.model;
   RayBatch& batch = *scene.batch;
@@ -172,7 +175,9 @@ TEST_P(RayGradient, EqualsCeresProblemEvaluateWithConstantBlocks) {
 INSTANTIATE_TEST_SUITE_P(
     Cases, RayGradient,
     ::testing::Values(Case{"bones_plain", 3, false}, Case{"bones_huber", 3, true},
-                      Case{"no_bones_plain", 0, false}, Case{"no_bones_huber", 0, true}),
+                      Case{"no_bones_plain", 0, false}, Case{"no_bones_huber", 0, true},
+                      Case{"delta_skinning_plain", 3, false, true},
+                      Case{"delta_skinning_huber", 3, true, true}),
     [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
 
 }  // namespace

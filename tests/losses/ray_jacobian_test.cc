@@ -105,5 +105,134 @@ INSTANTIATE_TEST_SUITE_P(AllTerms, RayTermJacobian,
                            return std::string(LossTermName(info.param));
                          });
 
+// The same three checks with delta skinning on (MLP_Delta logits in every
+// warp, Eq. 14), plus a per-block check of the delta blocks relative to their
+// own largest entry, so a wrong delta Jacobian cannot hide behind larger
+// blocks in the global relative error.
+class DeltaSkinningJacobian : public ::testing::TestWithParam<LossTerm> {};
+
+TestSceneOptions DeltaSceneOptions() {
+  TestSceneOptions o;
+  o.delta_skinning = true;
+  return o;
+}
+
+TEST_P(DeltaSkinningJacobian, MatchesFullJetReferencePerBlock) {
+  const LossTerm term = GetParam();
+  TestScene scene = MakeTestScene(DeltaSceneOptions());
+  RayBatch& batch = *scene.batch;
+  ASSERT_TRUE(scene.model->DeltaSkinningIsNonZero());
+  int delta_blocks_seen = 0;
+  for (int r = 0; r < batch.num_rays(); ++r) {
+    auto mixed = batch.MakeCostFunction(r, term);
+    auto reference = MakeReferenceCostFunction(batch, r, term);
+    const std::vector<double*> params = batch.TermParameterBlocks(r, term);
+    const std::vector<RayBlock> blocks = batch.TermBlocks(r, term);
+    ASSERT_EQ(mixed->parameter_block_sizes(), reference->parameter_block_sizes());
+    const auto a = EvaluateCost(*mixed, params);
+    const auto b = EvaluateCost(*reference, params);
+    ASSERT_TRUE(a.ok && b.ok);
+    EXPECT_LT((a.residuals - b.residuals).cwiseAbs().maxCoeff(),
+              1e-12 * std::max(1.0, b.residuals.cwiseAbs().maxCoeff()))
+        << "ray " << r;
+    EXPECT_LT(RelativeJacobianError(a, b), kReferenceTolerance) << "ray " << r;
+    for (size_t i = 0; i < blocks.size(); ++i) {
+      if (blocks[i] != kBlockDeltaSkin && blocks[i] != kBlockPoseCode &&
+          blocks[i] != kBlockRestPoseCode) {
+        continue;
+      }
+      ++delta_blocks_seen;
+      const double scale = b.jacobians[i].cwiseAbs().maxCoeff();
+      EXPECT_GT(scale, 0.0) << RayBlockName(blocks[i]) << " ray " << r;
+      EXPECT_LT((a.jacobians[i] - b.jacobians[i]).cwiseAbs().maxCoeff(),
+                kReferenceTolerance * scale)
+          << RayBlockName(blocks[i]) << " ray " << r;
+    }
+  }
+  EXPECT_GE(delta_blocks_seen, 2 * batch.num_rays());
+}
+
+TEST_P(DeltaSkinningJacobian, BatchedCacheEqualsSingleRay) {
+  const LossTerm term = GetParam();
+  TestScene scene = MakeTestScene(DeltaSceneOptions());
+  RayBatch& batch = *scene.batch;
+  batch.EvaluateAll(/*jacobians=*/true);
+  for (int r = 0; r < batch.num_rays(); ++r) {
+    auto cost = batch.MakeCostFunction(r, term);
+    const std::vector<double*> params = batch.TermParameterBlocks(r, term);
+    const auto cached = EvaluateCost(*cost, params);
+    batch.Invalidate();
+    const auto single = EvaluateCost(*cost, params);
+    batch.EvaluateAll(true);
+    EXPECT_LT((cached.residuals - single.residuals).cwiseAbs().maxCoeff(), 1e-13);
+    EXPECT_LT(RelativeJacobianError(cached, single), kBatchTolerance) << "ray " << r;
+  }
+}
+
+TEST_P(DeltaSkinningJacobian, AgreesWithNumericDifferentiation) {
+  const LossTerm term = GetParam();
+  TestScene scene = MakeTestScene(DeltaSceneOptions());
+  RayBatch& batch = *scene.batch;
+  ceres::NumericDiffOptions numeric;
+  numeric.ridders_relative_initial_step_size = 1e-4;  // as above
+  auto cost = batch.MakeCostFunction(0, term);
+  const std::vector<double*> params = batch.TermParameterBlocks(0, term);
+  const std::vector<const ceres::Manifold*>* no_manifolds = nullptr;
+  ceres::GradientChecker checker(cost.get(), no_manifolds, numeric);
+  ceres::GradientChecker::ProbeResults results;
+  checker.Probe(params.data(), 1e-6, &results);
+  double err = 0.0, scale = 0.0;
+  for (size_t i = 0; i < results.jacobians.size(); ++i) {
+    err =
+        std::max(err, (results.jacobians[i] - results.numeric_jacobians[i]).cwiseAbs().maxCoeff());
+    scale = std::max(scale, results.numeric_jacobians[i].cwiseAbs().maxCoeff());
+  }
+  EXPECT_GT(scale, 0.0);
+  EXPECT_LT(err, 1e-6 * scale) << results.error_log;
+}
+
+// With delta skinning switched off in the batch (allowed while MLP_Delta's
+// output layer is zero), the terms carry no delta blocks and evaluate exactly
+// as with it on.
+TEST(DeltaSkinning, OffEqualsOnWhileTheOutputLayerIsZero) {
+  TestScene scene = MakeTestScene(DeltaSceneOptions());
+  Model& model = *scene.model;
+  const Mlp& mlp = model.delta_skinning()->mlp();
+  const int last = mlp.NumLinearLayers() - 1;
+  std::fill(model.delta_skinning_params() + mlp.WeightOffset(last),
+            model.delta_skinning_params() + mlp.NumParameters(), 0.0);
+  ASSERT_FALSE(model.DeltaSkinningIsNonZero());
+  RayBatch& batch = *scene.batch;
+  batch.EvaluateAll(false);
+  std::vector<double> on;
+  for (int r = 0; r < batch.num_rays(); ++r) {
+    const auto& res = batch.evaluation(r).residuals;
+    on.insert(on.end(), res.begin(), res.end());
+  }
+  batch.SetDeltaSkinning(false);
+  for (int r = 0; r < batch.num_rays(); ++r) {
+    for (RayBlock b : batch.TermBlocks(r, LossTerm::kFlow)) {
+      EXPECT_NE(b, kBlockDeltaSkin);
+      EXPECT_NE(b, kBlockPoseCode);
+    }
+  }
+  batch.EvaluateAll(false);
+  std::vector<double> off;
+  for (int r = 0; r < batch.num_rays(); ++r) {
+    const auto& res = batch.evaluation(r).residuals;
+    off.insert(off.end(), res.begin(), res.end());
+  }
+  ASSERT_EQ(on.size(), off.size());
+  for (size_t k = 0; k < on.size(); ++k) EXPECT_EQ(on[k], off[k]) << k;
+}
+
+INSTANTIATE_TEST_SUITE_P(AllTerms, DeltaSkinningJacobian,
+                         ::testing::Values(LossTerm::kRgb, LossTerm::kSilhouette, LossTerm::kFlow,
+                                           LossTerm::kFeatureMatch, LossTerm::kCycle2d,
+                                           LossTerm::kCycle3d),
+                         [](const ::testing::TestParamInfo<LossTerm>& info) {
+                           return std::string(LossTermName(info.param));
+                         });
+
 }  // namespace
 }  // namespace banmo

@@ -9,7 +9,9 @@
 // and the skinning logit of a point y in rest coordinates is
 //   l_b(y) = -1/2 (y - C_b)^T Q_b (y - C_b)                     (Eq. 13)
 // (the paper's W_sigma with the Gaussian's sign and factor made explicit).
-// Skinning weights are softmax_b(l_b) (Eq. 14; no delta-skinning term here).
+// Skinning weights are softmax_b(l_b + d_b) (Eq. 14), where d = W_Delta are
+// optional delta-skinning logits (delta_skinning.h; null = zero) evaluated
+// by the caller at the warp's input point.
 //
 // Bone transform block at frame t (kPoseSize = 7, geometry/se3.h):
 //   posed_from_rest J_b^t: moves bone b from its rest configuration to time t
@@ -95,10 +97,11 @@ inline void BlendPoints(int num_bones, const T* logits, const T* points, T* out)
 void SkinningWeights(int num_bones, const double* logits, double* weights);
 
 // Backward warp x_in_root (time t) -> canonical. bones: B rest blocks
-// (kBoneSize each, contiguous); bones_t: B transforms (kPoseSize each).
+// (kBoneSize each, contiguous); bones_t: B transforms (kPoseSize each);
+// delta_logits: B delta-skinning logits at x_in_root (null = none).
 template <typename T>
 void BackwardWarp(int num_bones, const T* bones, const T* bones_t, const T* x_in_root,
-                  T* x_canonical) {
+                  T* x_canonical, const T* delta_logits = nullptr) {
   if (num_bones == 0) {
     std::copy(x_in_root, x_in_root + 3, x_canonical);
     return;
@@ -107,14 +110,16 @@ void BackwardWarp(int num_bones, const T* bones, const T* bones_t, const T* x_in
   for (int b = 0; b < num_bones; ++b) {
     BackwardBoneTerm(bones + kBoneSize * b, bones_t + kPoseSize * b, x_in_root, &logits[b],
                      &points[3 * b]);
+    if (delta_logits != nullptr) logits[b] += delta_logits[b];
   }
   BlendPoints(num_bones, logits.data(), points.data(), x_canonical);
 }
 
-// Forward warp canonical -> x_in_root at time t.
+// Forward warp canonical -> x_in_root at time t (delta_logits: at
+// x_canonical, null = none).
 template <typename T>
 void ForwardWarp(int num_bones, const T* bones, const T* bones_t, const T* x_canonical,
-                 T* x_in_root) {
+                 T* x_in_root, const T* delta_logits = nullptr) {
   if (num_bones == 0) {
     std::copy(x_canonical, x_canonical + 3, x_in_root);
     return;
@@ -123,6 +128,7 @@ void ForwardWarp(int num_bones, const T* bones, const T* bones_t, const T* x_can
   for (int b = 0; b < num_bones; ++b) {
     ForwardBoneTerm(bones + kBoneSize * b, bones_t + kPoseSize * b, x_canonical, &logits[b],
                     &points[3 * b]);
+    if (delta_logits != nullptr) logits[b] += delta_logits[b];
   }
   BlendPoints(num_bones, logits.data(), points.data(), x_in_root);
 }
@@ -131,10 +137,13 @@ void ForwardWarp(int num_bones, const T* bones, const T* bones_t, const T* x_can
 // terms are differentiated with Jets over (x, bone, bone_t) only (20
 // directions), and the blend is differentiated by hand:
 //   d out / d l_b = w_b (p_b - out),   d out / d p_b = w_b I.
+// d_x is the partial derivative with the delta logits held fixed; the caller
+// chains d_delta_logits through the delta-skinning MLP.
 struct WarpJacobian {
-  Eigen::Matrix3d d_x = Eigen::Matrix3d::Zero();       // d out / d x
-  Eigen::Matrix<double, 3, Eigen::Dynamic> d_bones;    // 3 x (kBoneSize B)
-  Eigen::Matrix<double, 3, Eigen::Dynamic> d_bones_t;  // 3 x (kPoseSize B)
+  Eigen::Matrix3d d_x = Eigen::Matrix3d::Zero();            // d out / d x
+  Eigen::Matrix<double, 3, Eigen::Dynamic> d_bones;         // 3 x (kBoneSize B)
+  Eigen::Matrix<double, 3, Eigen::Dynamic> d_bones_t;       // 3 x (kPoseSize B)
+  Eigen::Matrix<double, 3, Eigen::Dynamic> d_delta_logits;  // 3 x B (with delta logits)
 };
 
 enum class WarpDirection { kBackward, kForward };
@@ -146,7 +155,8 @@ inline constexpr double kNegligibleSkinningWeight = 1e-16;
 
 // Evaluates the warp (as BackwardWarp / ForwardWarp) and its Jacobian.
 void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bones,
-                      const double* bones_t, const double* x, double* out, WarpJacobian* jacobian);
+                      const double* bones_t, const double* x, double* out, WarpJacobian* jacobian,
+                      const double* delta_logits = nullptr);
 
 // Initialises B rest bones: centres at the given points, identity
 // orientation, isotropic scale `scale` (log-scale log(scale)).

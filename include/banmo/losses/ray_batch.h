@@ -61,6 +61,9 @@ enum RayBlock {
   kBlockIntrinsics,     // intrinsics of the ray's video
   kBlockPartnerRoot,    // root_delta of the flow partner frame t'
   kBlockPartnerBonesT,  // bone transforms of frame t'
+  kBlockDeltaSkin,      // MLP_Delta weights (delta skinning, Eq. 14)
+  kBlockRestPoseCode,   // omega^* (forward warps' delta skinning)
+  kBlockPoseCode,       // omega^t of frame t (backward warp's delta skinning)
   kNumRayBlocks
 };
 const char* RayBlockName(RayBlock block);
@@ -103,6 +106,14 @@ class RayBatch : public ceres::EvaluationCallback {
 
   const RayBatchOptions& options() const { return options_; }
   const Model& model() const { return *model_; }
+
+  // Whether the warps add the delta-skinning logits (default: when the model
+  // has delta skinning). Off is only allowed while MLP_Delta's output is
+  // identically zero (Model::DeltaSkinningIsNonZero() false): then the
+  // evaluation is unchanged and the delta blocks are left out of the terms
+  // (the solver's schedule switches it on from a fraction of a stage).
+  void SetDeltaSkinning(bool on);
+  bool delta_skinning() const { return delta_skinning_; }
 
   // Canonical points X of the soft-argmax (Eq. 15's V*), 3 x M.
   void SetMatchGrid(const Eigen::Matrix3Xd& grid);
@@ -161,12 +172,12 @@ class RayBatch : public ceres::EvaluationCallback {
   // EvaluateRays with an optional gradient mode (robust != nullptr): then
   // each evaluation's small-block "jacobians" hold one row, the ray's
   // rho'-weighted J^T r transposed, ray_cost its cost, and mlp_gradient the
-  // batch's gradient wrt the sdf, color and embedding blocks.
+  // batch's gradient wrt the sdf, color, embedding and delta-skinning blocks.
   void EvaluateRaysImpl(const std::vector<const Ray*>& rays,
                         const std::vector<RayParameters>& params, bool jacobians,
                         const RayRobustLosses* robust, std::vector<RayEvaluation>* out,
                         std::vector<double>* ray_cost,
-                        std::array<Eigen::VectorXd, 3>* mlp_gradient) const;
+                        std::array<Eigen::VectorXd, 4>* mlp_gradient) const;
   Model* model_;
   RayBatchOptions options_;
   Eigen::Matrix3Xd grid_;
@@ -174,6 +185,7 @@ class RayBatch : public ceres::EvaluationCallback {
   std::vector<RayEvaluation> evaluations_;
   bool cache_valid_ = false;
   bool cache_has_jacobians_ = false;
+  bool delta_skinning_ = false;
 };
 
 }  // namespace banmo

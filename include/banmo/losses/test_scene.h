@@ -23,6 +23,10 @@ struct TestSceneOptions {
   int grid_points = 64;       // soft-argmax grid size M
   int match_top_k = 8;        // K
   double perturbation = 0.2;  // size of the random pose/bone perturbations
+  // Delta skinning (Eq. 14): a small MLP_Delta (width mlp_width, 1 hidden
+  // layer, 1 band, 3-d pose codes) with a random, non-zero output layer so
+  // every derivative of the delta path is exercised.
+  bool delta_skinning = false;
   uint32_t seed = 7;
   RayLossWeights weights;
 };

@@ -5,10 +5,14 @@
 //   sdf, color, embedding     MLP weights of the canonical fields (field/canonical_field.h)
 //   log_beta (1)              log of VolSDF's Laplace scale
 //   bones (kBoneSize B)       rest bones (deform/bones.h)
+//   delta_skinning, rest_pose_code
+//                             MLP_Delta weights and omega^* (deform/delta_skinning.h;
+//                             only when options.delta_skinning.enabled)
 //   appearance[v] (A)         per-video appearance code omega_e (Eq. 1)
 //   per frame (video v, frame t):
 //     root_delta (7)          dG^t, camera_from_root = dG^t * G0^t (Eq. 20)
 //     bones_t (kPoseSize B)   J_b^t posed_from_rest per bone (Eq. 8-10)
+//     pose_code (P)           omega^t of delta skinning (when enabled)
 //     intrinsics (4)          [fx, fy, cx, cy] of the video's camera (held
 //                             constant unless a stage frees them)
 //   G0^t (root_init) is data, not a parameter.
@@ -21,6 +25,7 @@
 #include <vector>
 
 #include "banmo/deform/bones.h"
+#include "banmo/deform/delta_skinning.h"
 #include "banmo/field/canonical_field.h"
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/se3.h"
@@ -28,11 +33,12 @@
 namespace banmo {
 
 struct ModelOptions {
-  CanonicalFieldOptions field;    // MLP sizes, encoding, appearance code size
-  int num_bones = 8;              // B; 0 = rigid object (no skinning)
-  double init_bone_scale = 0.15;  // isotropic Gaussian scale of new bones (canonical units)
-  double init_beta = 0.05;        // VolSDF beta at initialisation (canonical units)
-  uint32_t seed = 0;              // MLP initialisation seed
+  CanonicalFieldOptions field;          // MLP sizes, encoding, appearance code size
+  int num_bones = 8;                    // B; 0 = rigid object (no skinning)
+  double init_bone_scale = 0.15;        // isotropic Gaussian scale of new bones (canonical units)
+  double init_beta = 0.05;              // VolSDF beta at initialisation (canonical units)
+  uint32_t seed = 0;                    // MLP initialisation seed
+  DeltaSkinningOptions delta_skinning;  // optional MLP_Delta (needs num_bones >= 1)
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;
@@ -42,6 +48,7 @@ struct FrameParameters {
   Pose root_delta = PoseIdentity();  // dG^t
   Pose root_init = PoseIdentity();   // G0^t (data)
   std::vector<double> bones_t;       // kPoseSize * B
+  std::vector<double> pose_code;     // omega^t (P; empty without delta skinning)
 };
 
 struct VideoParameters {
@@ -73,6 +80,18 @@ class Model {
   const double* embedding() const { return embedding_.data(); }
   const double* log_beta() const { return &log_beta_; }
   const double* bones() const { return bones_.data(); }
+  // Delta skinning (null / empty when the model has none).
+  const DeltaSkinning* delta_skinning() const { return delta_.get(); }
+  bool has_delta_skinning() const { return delta_ != nullptr; }
+  double* delta_skinning_params() { return delta_params_.data(); }
+  const double* delta_skinning_params() const { return delta_params_.data(); }
+  int delta_skinning_size() const { return static_cast<int>(delta_params_.size()); }
+  double* rest_pose_code() { return rest_pose_code_.data(); }
+  const double* rest_pose_code() const { return rest_pose_code_.data(); }
+  int pose_code_size() const { return static_cast<int>(rest_pose_code_.size()); }
+  // Whether delta skinning changes any warp: the model has it and its output
+  // layer is not all zeros (DeltaSkinning::IsZero).
+  bool DeltaSkinningIsNonZero() const;
   int sdf_size() const { return static_cast<int>(sdf_.size()); }
   int color_size() const { return static_cast<int>(color_.size()); }
   int embedding_size() const { return static_cast<int>(embedding_.size()); }
@@ -88,15 +107,18 @@ class Model {
   Pose RootPose(int v, int t) const;
 
   // Visits every block (parameters and the G0^t data) in a fixed order:
-  // sdf, color, embedding, log_beta, bones, then per video: intrinsics,
-  // appearance, and per frame: root_delta, root_init, bones_t. Names are
-  // e.g. "sdf", "video3/intrinsics", "video3/frame12/root_delta".
+  // sdf, color, embedding, log_beta, bones, [delta_skinning, rest_pose_code],
+  // then per video: intrinsics, appearance, and per frame: root_delta,
+  // root_init, bones_t, [pose_code] ([..] only with delta skinning). Names
+  // are e.g. "sdf", "video3/intrinsics", "video3/frame12/root_delta".
   void ForEachBlock(const std::function<void(const std::string& name, double* data, int size)>& fn);
 
  private:
   ModelOptions options_;
   std::unique_ptr<CanonicalField> field_;
+  std::unique_ptr<DeltaSkinning> delta_;
   std::vector<double> sdf_, color_, embedding_, bones_;
+  std::vector<double> delta_params_, rest_pose_code_;
   double log_beta_ = 0.0;
   std::vector<VideoParameters> videos_;
 };
