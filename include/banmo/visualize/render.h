@@ -1,0 +1,124 @@
+// Images of a model for one dataset frame, rendered by the training pipeline
+// itself (issue 7, `banmo render`): every pixel becomes a Ray (losses/ray.h)
+// carrying the observed colour and flow, RayBatch::EvaluateRays evaluates it
+// exactly as the losses do (jacobians off), and with unit weights on the rgb,
+// silhouette and flow terms the rendered values are
+//   rendered colour  = observed rgb  + r_rgb   (RgbLoss: r = c - c_hat)
+//   rendered opacity = ray mask      + r_sil   (SilhouetteLoss: r = o - s_hat)
+//   rendered flow    = observed flow + r_flow  (FlowLoss: r = F - F_hat)
+// so no second renderer exists to drift from the one the solver trains.
+//
+// Rays are built as optim/ray_sampler.cc builds them: pixel centre uv =
+// (x + 0.5, y + 0.5), depth samples between the frame's near and far planes
+// (NearFarPlanes: canonical bounds through the root pose, +- margin), here
+// stratified at the bin midpoints (no jitter, so renders are deterministic),
+// optionally refined by the solver's importance resampling with a fixed
+// seed. Every ray carries mask = 1 so the rgb and flow terms are active on
+// every pixel (the losses switch them off on background pixels); the error
+// maps compare with the real observations separately (ComputeErrorMaps).
+#pragma once
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "banmo/io/dataset.h"
+#include "banmo/model/model.h"
+
+namespace banmo {
+
+struct FrameRenderOptions {
+  // Depth samples per ray (> 0). The solver's stage config has the value
+  // the model was trained with (samples_per_ray).
+  int samples_per_ray = 32;
+  // Near/far planes: the canonical bounds' depth range through the root
+  // pose, widened by this fraction (>= 0), as SamplingConfig::near_far_margin.
+  double near_far_margin = 0.2;
+  // Canonical box whose depth range bounds the samples (non-empty);
+  // CanonicalBoundsFromSurface gives the solver's kind of box.
+  Eigen::AlignedBox3d canonical_bounds{Eigen::Vector3d::Constant(-1.2),
+                                       Eigen::Vector3d::Constant(1.2)};
+  // Second pass as the solver's importance_depth sampling: half of the
+  // samples are redrawn from the first pass's rendering weights
+  // (ImportanceResample, seeded with importance_seed + pixel index, so the
+  // result is deterministic). Doubles the cost.
+  bool importance = false;
+  uint32_t importance_seed = 0;
+  // Rays evaluated per call of RayBatch::EvaluateRays (> 0): bounds memory
+  // (about samples_per_ray * 1 kB per ray).
+  int chunk_rays = 4096;
+  // Gap of the rendered flow (> 0): partner frame t + gap, or t - gap when
+  // t + gap is past the end of the video; no flow for one-frame videos.
+  int flow_gap = 1;
+
+  // Throws InputError naming the field on a violated constraint.
+  void Check() const;
+};
+
+// The observations of one frame in the units of the losses (doubles).
+struct ObservedFrame {
+  int video = 0;
+  int frame = 0;
+  int partner_frame = -1;  // frame t' of the flow (see FrameRenderOptions::flow_gap), -1 = none
+  cv::Mat rgb;             // CV_64FC3, RGB in [0, 1]
+  cv::Mat mask;            // CV_64FC1: 1 object, 0 background, -1 unknown (kMaskIgnore)
+  cv::Mat flow;            // CV_64FC2 observed flow t -> t' in pixels (0 where invalid)
+  cv::Mat flow_valid;      // CV_8UC1: 255 where the dataset has valid flow t -> t'
+};
+
+// Reads frame (video, frame) of `dataset`; the flow is the dataset's flow for
+// the partner's gap (flow_valid all 0 if the dataset has none).
+ObservedFrame ObserveFrame(const Dataset& dataset, int video, int frame, int flow_gap);
+
+// The model's images of a frame.
+struct RenderedFrame {
+  int video = 0;
+  int frame = 0;
+  int partner_frame = -1;  // as ObservedFrame
+  cv::Mat rgb;             // CV_64FC3 sum_i tau_i c_i (Eq. 4), no background colour
+  cv::Mat opacity;         // CV_64FC1 sum_i tau_i
+  cv::Mat flow;            // CV_64FC2 expected displacement to t' (Eqs. 6-7), 0 if no partner
+};
+
+// Renders every pixel of `observed`'s frame (image size = observed.rgb's).
+// The model is only read (RayBatch needs a mutable pointer for Ceres; its
+// EvaluateRays does not write). Uses ParallelFor inside the ray pipeline.
+RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
+                          const FrameRenderOptions& options);
+
+// Per-pixel errors, NaN where the quantity is not defined.
+struct ErrorMaps {
+  cv::Mat rgb;   // CV_64FC1 mean over channels of |c - c_hat| on observed object pixels
+  cv::Mat mask;  // CV_64FC1 |o - s_hat| where the mask is known
+  cv::Mat flow;  // CV_64FC1 endpoint error |F - F_hat| (px) on object pixels with valid flow
+};
+ErrorMaps ComputeErrorMaps(const RenderedFrame& rendered, const ObservedFrame& observed);
+
+// Means of the error maps and the silhouette IoU of one frame.
+struct FrameErrors {
+  double rgb = 0.0;       // mean of ErrorMaps::rgb (NaN if no object pixel)
+  double mask = 0.0;      // mean of ErrorMaps::mask
+  double flow = 0.0;      // mean endpoint error (NaN if no valid flow)
+  double mask_iou = 0.0;  // IoU of {o >= 0.5} and {s_hat = 1} over known pixels (NaN if both empty)
+  int rgb_pixels = 0, mask_pixels = 0, flow_pixels = 0;  // pixels averaged
+};
+FrameErrors SummarizeErrors(const ErrorMaps& errors, const RenderedFrame& rendered,
+                            const ObservedFrame& observed);
+
+// A canonical box for the near/far planes, found the way the solver refreshes
+// its bounds: the surface's bounds from a coarse extraction (resolution 48,
+// largest component) inside `search`, plus 10 % of its size and 0.02 on
+// every side, clipped to [-2, 2]^3. Returns `search` when the level set does
+// not cross the grid (e.g. an untrained model).
+Eigen::AlignedBox3d CanonicalBoundsFromSurface(
+    const Model& model,
+    const Eigen::AlignedBox3d& search = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0),
+                                                            Eigen::Vector3d::Constant(2.0)));
+
+// Throws InputError naming `data_dir` if the dataset does not match the model:
+// number of videos, frames per video, image size or camera intrinsics
+// (relative difference > 1e-6) of a video.
+void CheckDatasetMatchesModel(const Dataset& dataset, const Model& model,
+                              const std::string& data_dir);
+
+}  // namespace banmo

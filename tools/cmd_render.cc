@@ -1,0 +1,252 @@
+// banmo render: pictures of a model beside its dataset (input, volume-rendered
+// RGB, mask agreement, shaded mesh, mesh by dominant bone) and per-frame error
+// maps and mean errors. docs/render.md.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "banmo/extract/extract.h"
+#include "banmo/io/dataset.h"
+#include "banmo/optim/checkpoint.h"
+#include "banmo/optim/config.h"
+#include "banmo/util/error.h"
+#include "banmo/util/parallel.h"
+#include "banmo/util/timer.h"
+#include "banmo/visualize/sequence.h"
+#include "command.h"
+
+namespace banmo {
+namespace {
+
+// "auto" or "xmin,ymin,zmin,xmax,ymax,zmax".
+bool ParseBoundsOption(const std::string& text, Eigen::AlignedBox3d* box) {
+  if (text == "auto") return false;
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      ThrowInputError("--bounds '", text, "': '", item, "' is not a number");
+    }
+  }
+  if (v.size() != 6) {
+    ThrowInputError("--bounds '", text,
+                    "': expected 'auto' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
+  }
+  *box = Eigen::AlignedBox3d(Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]));
+  if ((box->sizes().array() <= 0.0).any()) {
+    ThrowInputError("--bounds '", text, "': expected max > min on every axis");
+  }
+  return true;
+}
+
+std::string Num(double x) {
+  if (std::isnan(x)) return "  n/a";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.3f", x);
+  return buf;
+}
+
+int RunRender(int argc, char** argv) {
+  CLI::App app{
+      "Render a model beside its dataset (docs/render.md). For each chosen frame, "
+      "OUT/frames/video<VV>_frame<TTTTT>.png holds five panels side by side: the input RGB, the "
+      "model's RGB by volume rendering (the solver's own ray pipeline), the rendered mask over "
+      "the input mask (white both, red rendered only, blue input only, grey unknown), the "
+      "articulated mesh (Lambert shading, input camera) and the mesh coloured by dominant bone. "
+      "OUT/errors/ holds the rgb, mask and flow error maps (INFERNO colour scale, 0 = black, the "
+      "--*-error-max value = pale yellow, grey = undefined) and OUT/errors.csv the per-frame "
+      "means. Files of the same names in OUT are replaced.",
+      "banmo render"};
+  std::string model_dir, data_dir, out_dir, frames_text, bounds_text = "auto", importance = "auto";
+  int every = 5, samples = 0, threads = 0, scale = 0;
+  bool no_labels = false;
+  RenderSequenceOptions options;
+  app.add_option("--model", model_dir, "Model checkpoint folder (written by banmo solve)")
+      ->required();
+  app.add_option("--data", data_dir, "Dataset folder the model was trained on (docs/dataset.md)")
+      ->required();
+  app.add_option("--out", out_dir, "Output folder (created)")->required();
+  app.add_option("--frames", frames_text,
+                 "Frames to render: all, or a comma-separated list of V:T, V:T0-T1, V:* (video V, "
+                 "frame T), as banmo extract --frames (default: every --every-th frame)");
+  app.add_option("--every", every, "Without --frames: frames 0, K, 2K, ... of every video")
+      ->capture_default_str();
+  app.add_option("--samples", samples,
+                 "Depth samples per ray (0 = samples_per_ray of the checkpoint's last stage)")
+      ->capture_default_str();
+  app.add_option("--importance", importance,
+                 "Importance resampling of the depth samples as the solver's importance_depth: "
+                 "auto (as the checkpoint's last stage), on, off")
+      ->capture_default_str();
+  app.add_option("--bounds", bounds_text,
+                 "Canonical box for the near/far planes and the mesh: 'auto' (the surface's "
+                 "bounds + 10 %, as the solver refreshes them) or xmin,ymin,zmin,xmax,ymax,zmax")
+      ->capture_default_str();
+  app.add_option("--mesh-resolution", options.mesh_resolution,
+                 "Marching-cubes cells for the mesh panels (0 = no mesh panels)")
+      ->capture_default_str();
+  app.add_option("--flow-gap", options.frame.flow_gap,
+                 "Flow rendered and compared: frame t -> t + gap (t - gap at the end of a video)")
+      ->capture_default_str();
+  app.add_option("--rgb-error-max", options.rgb_error_max,
+                 "Top of the rgb error colour scale (mean |rendered - input| over channels, "
+                 "colours in [0, 1])")
+      ->capture_default_str();
+  app.add_option("--mask-error-max", options.mask_error_max,
+                 "Top of the mask error colour scale (|opacity - mask|)")
+      ->capture_default_str();
+  app.add_option("--flow-error-max", options.flow_error_max,
+                 "Top of the flow error colour scale (endpoint error, pixels)")
+      ->capture_default_str();
+  app.add_option("--scale", scale,
+                 "Integer enlargement of the panels (0 = the smallest making them >= 256 px high)")
+      ->capture_default_str();
+  app.add_flag("--no-labels", no_labels, "No text labels on the panels");
+  app.add_flag("--video", options.write_video,
+               "Also write OUT/sequence.mp4 of the panel images (OpenCV VideoWriter)");
+  app.add_option("--fps", options.fps, "Frames per second of the MP4")->capture_default_str();
+  app.add_option("--turntable", options.turntable_views,
+                 "Also write N views of the canonical mesh turning about its y axis "
+                 "(OUT/turntable/view<NNN>.png; 0 = none)")
+      ->capture_default_str();
+  app.add_option("--chunk", options.frame.chunk_rays, "Rays per batched evaluation (memory bound)")
+      ->capture_default_str();
+  app.add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  // Everything is validated before OUT is created.
+  if (threads < 0) ThrowInputError("--threads: expected >= 0, got ", threads);
+  if (threads > 0) SetNumThreads(threads);
+  if (every < 1) ThrowInputError("--every: expected >= 1, got ", every);
+  if (samples < 0) ThrowInputError("--samples: expected >= 0, got ", samples);
+  if (scale < 0) ThrowInputError("--scale: expected >= 0, got ", scale);
+  if (importance != "auto" && importance != "on" && importance != "off") {
+    ThrowInputError("--importance: expected auto, on or off, got '", importance, "'");
+  }
+  const bool explicit_bounds = ParseBoundsOption(bounds_text, &options.frame.canonical_bounds);
+  if (std::filesystem::exists(out_dir) && !std::filesystem::is_directory(out_dir)) {
+    ThrowInputError("--out ", out_dir, ": exists and is not a folder");
+  }
+
+  Timer total;
+  CheckpointInfo info;
+  const std::unique_ptr<Model> model = LoadCheckpoint(model_dir, &info);
+  // Sampling as the model was trained (the last stage of its config).
+  bool trained_importance = false;
+  if (!info.config.empty()) {
+    const SolverConfig config = ParseSolverConfig(info.config, model_dir + "/model.yaml");
+    if (!config.stages.empty()) {
+      const StageConfig& last = config.stages.back();
+      options.frame.samples_per_ray = last.samples_per_ray;
+      options.frame.near_far_margin = last.sampling.near_far_margin;
+      trained_importance = last.sampling.importance_depth;
+    }
+  }
+  if (samples > 0) options.frame.samples_per_ray = samples;
+  options.frame.importance = importance == "on" || (importance == "auto" && trained_importance);
+
+  LoadOptions load;
+  load.load_features = false;
+  const Dataset dataset = LoadDataset(data_dir, load);
+  CheckDatasetMatchesModel(dataset, *model, data_dir);
+
+  std::vector<std::pair<int, int>> frames;
+  if (frames_text.empty()) {
+    for (int v = 0; v < model->num_videos(); ++v) {
+      for (int t = 0; t < static_cast<int>(model->video(v).frames.size()); t += every) {
+        frames.emplace_back(v, t);
+      }
+    }
+  } else {
+    const FrameSelection selection = ParseFrameSelection(frames_text, *model, "--frames");
+    if (selection.all) {
+      for (int v = 0; v < model->num_videos(); ++v) {
+        for (int t = 0; t < static_cast<int>(model->video(v).frames.size()); ++t) {
+          frames.emplace_back(v, t);
+        }
+      }
+    } else {
+      frames = selection.frames;
+    }
+  }
+  if (frames.empty()) ThrowInputError("--frames '", frames_text, "': selects no frame");
+
+  if (scale == 0) {
+    int height = 1;
+    for (int v = 0; v < model->num_videos(); ++v) {
+      height = std::max(height, model->video(v).camera.height);
+    }
+    scale = std::max(1, (256 + height - 1) / height);
+  }
+  options.scale = scale;
+  options.labels = !no_labels;
+  options.Check();
+
+  if (!explicit_bounds) options.frame.canonical_bounds = CanonicalBoundsFromSurface(*model);
+  const Eigen::AlignedBox3d& b = options.frame.canonical_bounds;
+  std::printf(
+      "model %s (stage %d, iteration %d): %d videos, %d bones; %zu frames to render, %d samples "
+      "per ray%s, canonical bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
+      model_dir.c_str(), info.stage, info.iteration, model->num_videos(), model->num_bones(),
+      frames.size(), options.frame.samples_per_ray,
+      options.frame.importance ? " (+ importance resampling)" : "", b.min().x(), b.min().y(),
+      b.min().z(), b.max().x(), b.max().y(), b.max().z(), explicit_bounds ? "" : " (auto)");
+  std::fflush(stdout);
+
+  const SequenceSummary summary = RenderSequence(
+      *model, dataset, frames, options, out_dir, [&](const FrameReport& r, int done, int all) {
+        std::printf(
+            "  [%d/%d] video %d frame %d: rgb %s  mask %s  IoU %s  flow %s px  (volume %.2f s, "
+            "frame %.2f s)\n",
+            done, all, r.video, r.frame, Num(r.errors.rgb).c_str(), Num(r.errors.mask).c_str(),
+            Num(r.errors.mask_iou).c_str(), Num(r.errors.flow).c_str(), r.volume_seconds,
+            r.total_seconds);
+        std::fflush(stdout);
+      });
+
+  double volume = 0.0, frame_total = 0.0;
+  for (const FrameReport& r : summary.frames) {
+    volume += r.volume_seconds;
+    frame_total += r.total_seconds;
+  }
+  const double n = static_cast<double>(summary.frames.size());
+  std::printf("mesh panels: %s\n",
+              options.mesh_resolution == 0
+                  ? "off"
+                  : (summary.mesh_vertices > 0
+                         ? ("canonical mesh " + std::to_string(summary.mesh_vertices) +
+                            " vertices (" + Num(summary.mesh_seconds) + " s)")
+                               .c_str()
+                         : "the SDF has no zero level set in the bounds: mesh panels are black"));
+  if (options.write_video) {
+    std::printf("video: %s\n",
+                summary.video_path.empty()
+                    ? ("not written: " + summary.video_note).c_str()
+                    : (summary.video_path + " (" + summary.video_note + ")").c_str());
+  }
+  if (options.turntable_views > 0) {
+    std::printf("turntable: %d views in %s/turntable\n", summary.turntable_written,
+                out_dir.c_str());
+  }
+  std::printf(
+      "wrote %zu frames to %s/frames, error maps to %s/errors, means to %s/errors.csv; "
+      "%.2f s per frame (volume rendering %.2f s); total %.1f s\n",
+      summary.frames.size(), out_dir.c_str(), out_dir.c_str(), out_dir.c_str(), frame_total / n,
+      volume / n, total.Seconds());
+  return 0;
+}
+
+}  // namespace
+}  // namespace banmo
+
+BANMO_REGISTER_COMMAND(render, "Render a model beside its dataset: panels, error maps, mean errors",
+                       banmo::RunRender);
