@@ -88,7 +88,7 @@ int RunSolve(int argc, char** argv) {
     CheckpointInfo info;
     std::unique_ptr<Model> source = LoadCheckpoint(retarget_dir, &info);
     CopySharedParameters(*source, model.get(), retarget_dir);  // optim/solver.h
-    options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones"};
+    options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones", "delta_skinning"};
   }
   Solver solver(dataset, config, std::move(model));
   const SolveResult result = solver.Run(options);

@@ -241,6 +241,24 @@ TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& opti
   return mesh;
 }
 
+Eigen::MatrixXd ForwardDeltaLogits(const Model& model, const Eigen::Matrix3Xd& points) {
+  if (!model.DeltaSkinningIsNonZero()) return Eigen::MatrixXd(0, points.cols());
+  const DeltaSkinning& delta = *model.delta_skinning();
+  const int n = static_cast<int>(points.cols());
+  Eigen::MatrixXd logits(model.num_bones(), n);
+  const Eigen::Map<const Eigen::VectorXd> code(model.rest_pose_code(), delta.CodeDim());
+  constexpr int kChunk = 16384;  // bounds the MLP cache's memory
+  for (int start = 0; start < n; start += kChunk) {
+    const int count = std::min(kChunk, n - start);
+    DeltaSkinningBatch batch;
+    batch.x = points.middleCols(start, count);
+    batch.codes = code.replicate(1, count);
+    delta.ForwardBatch(model.delta_skinning_params(), &batch, false);
+    logits.middleCols(start, count) = batch.logits;
+  }
+  return logits;
+}
+
 TriangleMesh ArticulateMesh(const Model& model, const TriangleMesh& canonical, int video,
                             int frame) {
   CheckFrame(model, video, frame, "ArticulateMesh");
@@ -249,11 +267,13 @@ TriangleMesh ArticulateMesh(const Model& model, const TriangleMesh& canonical, i
   const int B = model.num_bones();
   CHECK_EQ(static_cast<int>(f.bones_t.size()), kPoseSize * B);
   TriangleMesh posed = canonical;
+  const Eigen::MatrixXd delta = ForwardDeltaLogits(model, canonical.vertices);
   ParallelFor(canonical.NumVertices(), [&](int begin, int end) {
     for (int i = begin; i < end; ++i) {
       const double* x_canonical = canonical.vertices.col(i).data();
       double x_in_root[3];
-      ForwardWarp(B, model.bones(), f.bones_t.data(), x_canonical, x_in_root);
+      ForwardWarp(B, model.bones(), f.bones_t.data(), x_canonical, x_in_root,
+                  delta.rows() > 0 ? delta.col(i).data() : nullptr);
       PoseTransformPoint(camera_from_root.data(), x_in_root, posed.vertices.col(i).data());
     }
   });
@@ -265,11 +285,13 @@ Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& po
   const int n = static_cast<int>(points.cols());
   Eigen::MatrixXd weights(B, n);
   if (B == 0) return weights;
+  const Eigen::MatrixXd delta = ForwardDeltaLogits(model, points);
   ParallelFor(n, [&](int begin, int end) {
     std::vector<double> logits(B);
     for (int i = begin; i < end; ++i) {
       for (int b = 0; b < B; ++b) {
         logits[b] = BoneLogit(model.bones() + kBoneSize * b, points.col(i).data());
+        if (delta.rows() > 0) logits[b] += delta(b, i);
       }
       SkinningWeights(B, logits.data(), weights.col(i).data());
     }

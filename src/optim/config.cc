@@ -54,12 +54,23 @@ void VisitFields(V& v, CanonicalFieldOptions& o) {
 }
 
 template <class V>
+void VisitFields(V& v, DeltaSkinningOptions& o) {
+  v("enabled", o.enabled);
+  v("width", o.width);
+  v("hidden_layers", o.hidden_layers);
+  v("num_bands", o.num_bands);
+  v("pose_code_dim", o.pose_code_dim);
+  v("code_init_std", o.code_init_std);
+}
+
+template <class V>
 void VisitFields(V& v, ModelOptions& o) {
   v("field", o.field);
   v("num_bones", o.num_bones);
   v("init_bone_scale", o.init_bone_scale);
   v("init_beta", o.init_beta);
   v("seed", o.seed);
+  v("delta_skinning", o.delta_skinning);
 }
 
 template <class V>
@@ -502,9 +513,9 @@ class Checker {
 };
 
 const std::vector<std::string>& ConstantGroups() {
-  static const std::vector<std::string> groups = {"sdf",      "color",      "embedding",
-                                                  "log_beta", "appearance", "root",
-                                                  "bones",    "bones_t",    "intrinsics"};
+  static const std::vector<std::string> groups = {
+      "sdf",   "color",   "embedding",  "log_beta",       "appearance", "root",
+      "bones", "bones_t", "intrinsics", "delta_skinning", "pose_code"};
   return groups;
 }
 
@@ -549,7 +560,13 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
       c.Fail(key, "group '", s.constant[i], "' listed twice");
     }
   }
-  if (constant.size() == ConstantGroups().size()) {
+  // The groups every model has (delta_skinning and pose_code exist only with
+  // delta skinning, which alone is nothing to reconstruct).
+  int base_constant = 0;
+  for (const std::string& g : constant) {
+    base_constant += g != "delta_skinning" && g != "pose_code";
+  }
+  if (base_constant == static_cast<int>(ConstantGroups().size()) - 2) {
     c.Fail(p + ".constant", "every parameter group is constant (nothing to optimise)");
   }
 
@@ -610,11 +627,6 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
-  if (s.schedule.delta_skinning_from < 1.0) {
-    c.Fail(h + ".delta_skinning_from",
-           "delta skinning is not available yet: expected >= 1 (off), got ",
-           s.schedule.delta_skinning_from);
-  }
 
   c.NonNegative(p + ".checkpoint_every", s.checkpoint_every);
   c.NonNegative(p + ".log_every", s.log_every);
@@ -727,7 +739,14 @@ void CheckSolverConfig(const SolverConfig& config, const std::string& source) {
   c.NonNegative("threads", config.threads);
   if (config.stages.empty()) c.Fail("stages", "expected a non-empty list of stages");
   for (size_t i = 0; i < config.stages.size(); ++i) {
-    CheckStage(c, "stages[" + std::to_string(i) + "]", config.stages[i]);
+    const std::string p = "stages[" + std::to_string(i) + "]";
+    CheckStage(c, p, config.stages[i]);
+    if (config.stages[i].schedule.delta_skinning_from < 1.0 && !m.delta_skinning.enabled) {
+      c.Fail(p + ".schedule.delta_skinning_from",
+             "delta skinning is switched on here but the model has none: set "
+             "model.delta_skinning.enabled: true (or delta_skinning_from >= 1), got ",
+             config.stages[i].schedule.delta_skinning_from);
+    }
   }
 }
 

@@ -166,7 +166,9 @@ std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOp
 
 void CopySharedParameters(const Model& from, Model* to, const std::string& source) {
   if (from.sdf_size() != to->sdf_size() || from.color_size() != to->color_size() ||
-      from.embedding_size() != to->embedding_size() || from.bones_size() != to->bones_size()) {
+      from.embedding_size() != to->embedding_size() || from.bones_size() != to->bones_size() ||
+      from.delta_skinning_size() != to->delta_skinning_size() ||
+      from.pose_code_size() != to->pose_code_size()) {
     ThrowInputError(source,
                     ": the model's sizes (MLP widths, bones) differ from the config's "
                     "model section; retarget with the config the model was trained with");
@@ -176,6 +178,12 @@ void CopySharedParameters(const Model& from, Model* to, const std::string& sourc
   std::copy(from.embedding(), from.embedding() + from.embedding_size(), to->embedding());
   std::copy(from.bones(), from.bones() + from.bones_size(), to->bones());
   *to->log_beta() = *from.log_beta();
+  // Delta skinning: MLP_Delta and the rest-pose code are shared; the new
+  // frames' pose codes are fitted.
+  std::copy(from.delta_skinning_params(), from.delta_skinning_params() + from.delta_skinning_size(),
+            to->delta_skinning_params());
+  std::copy(from.rest_pose_code(), from.rest_pose_code() + from.pose_code_size(),
+            to->rest_pose_code());
 }
 
 // Everything a resumed run needs beyond the model's parameters.
@@ -344,6 +352,11 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       add_block("bones", model.bones(), model.bones_size(),
                 MakeStackedQuaternionBlockManifold(B, kBoneSize, kBoneQw));
     }
+    if (model.has_delta_skinning()) {
+      add_block("delta_skinning", model.delta_skinning_params(), model.delta_skinning_size(),
+                nullptr);
+      add_block("delta_skinning", model.rest_pose_code(), model.pose_code_size(), nullptr);
+    }
     for (int v = 0; v < model.num_videos(); ++v) {
       add_block("intrinsics", model.video(v).intrinsics.data(), kIntrinsicsSize, nullptr);
       add_block("appearance", model.video(v).appearance.data(), model.appearance_size(), nullptr);
@@ -352,11 +365,39 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         add_block("root", f.root_delta.data(), kPoseSize, MakePoseManifold());
         if (B > 0)
           add_block("bones_t", f.bones_t.data(), kPoseSize * B, MakeStackedPoseManifold(B));
+        if (model.has_delta_skinning()) {
+          add_block("pose_code", f.pose_code.data(), model.pose_code_size(), nullptr);
+        }
       }
     }
     for (const std::string& g : constant) {
       for (double* p : groups[g]) problem.SetParameterBlockConstant(p);
     }
+    // Delta skinning (schedule.delta_skinning_from): before the fraction its
+    // groups are held constant, and while MLP_Delta's output is still zero
+    // the batch leaves it out (same values, no cost).
+    const std::set<std::string> configured_constant = constant;
+    auto schedule_delta_skinning = [&](double fraction) {
+      if (!model.has_delta_skinning()) return;
+      const bool free = fraction >= stage.schedule.delta_skinning_from;
+      for (const char* g : {"delta_skinning", "pose_code"}) {
+        const bool hold = !free || configured_constant.count(g) > 0;
+        if (hold) {
+          constant.insert(g);
+        } else {
+          constant.erase(g);
+        }
+        for (double* p : groups[g]) {
+          if (hold) {
+            problem.SetParameterBlockConstant(p);
+          } else {
+            problem.SetParameterBlockVariable(p);
+          }
+        }
+      }
+      batch.SetDeltaSkinning((free && !configured_constant.count("delta_skinning")) ||
+                             model.DeltaSkinningIsNonZero());
+    };
     std::array<std::unique_ptr<ceres::LossFunction>, kNumLossTerms> robust;
     for (int t = 0; t < kNumLossTerms; ++t) {
       robust[t] = MakeRobustLoss(TermConfig(stage.losses, static_cast<LossTerm>(t)).robust);
@@ -416,6 +457,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
 
       // ---- The minibatch. ----
       for (ceres::ResidualBlockId id : batch_blocks) problem.RemoveResidualBlock(id);
+      schedule_delta_skinning(fraction);
       batch_blocks.clear();
       regularizer_blocks.clear();
       std::vector<Ray> rays = sampler.Sample(stage.batch_rays, stage.samples_per_ray,
@@ -427,6 +469,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         coarse_options.weights = RayLossWeights();
         coarse_options.weights.feature_match = coarse_options.weights.cycle_2d = 0.0;
         RayBatch coarse(&model, coarse_options);
+        coarse.SetDeltaSkinning(batch.delta_skinning());
         coarse.SetRays(rays);
         coarse.EvaluateAll(false);
         for (int r = 0; r < coarse.num_rays(); ++r) {
@@ -569,7 +612,8 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
             mo.v.assign(tangent, 0.0);
           }
           ++mo.steps;
-          const bool is_mlp = name == "sdf" || name == "color" || name == "embedding";
+          const bool is_mlp =
+              name == "sdf" || name == "color" || name == "embedding" || name == "delta_skinning";
           double scale = 1.0;
           if (name.find("root_delta") != std::string::npos) scale = a.pose_lr_scale;
           if (name == "bones" || name.find("bones_t") != std::string::npos) scale = a.bone_lr_scale;
@@ -658,8 +702,12 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       } else if (stage.step_rule == "lm") {
         lm_step({});
       } else {  // alternate
-        adam_step(free_blocks({"sdf", "color", "embedding", "log_beta", "appearance"}));
-        lm_step({"sdf", "color", "embedding", "log_beta", "appearance"});
+        // Fields and codes by Adam (MLP_Delta and its pose codes are fields),
+        // then the coupled poses and bones by LM.
+        const std::set<std::string> fields = {
+            "sdf", "color", "embedding", "log_beta", "appearance", "delta_skinning", "pose_code"};
+        adam_step(free_blocks(fields));
+        lm_step(fields);
       }
 
       // Set constancy back (lm_step's hold toggled variable blocks).
@@ -791,8 +839,17 @@ void Solver::ReinitializeBones(State* state) {
       for (int b = 0; b < B; ++b) PoseSetIdentity(bones_t + kPoseSize * b);
     }
   }
+  // Delta logits were learnt for the old bones: back to zero (the output
+  // layer), so the new bones start from the Gaussian weights alone.
+  if (model.has_delta_skinning()) {
+    const Mlp& mlp = model.delta_skinning()->mlp();
+    const int last = mlp.NumLinearLayers() - 1;
+    std::fill(model.delta_skinning_params() + mlp.WeightOffset(last),
+              model.delta_skinning_params() + mlp.NumParameters(), 0.0);
+  }
   for (auto it = state->adam.begin(); it != state->adam.end();) {
-    const bool bone = it->first == "bones" || it->first.find("bones_t") != std::string::npos;
+    const bool bone = it->first == "bones" || it->first.find("bones_t") != std::string::npos ||
+                      it->first == "delta_skinning";
     it = bone ? state->adam.erase(it) : std::next(it);
   }
 }

@@ -174,6 +174,60 @@ TEST(ArticulateMesh, DifferentBonesBendTheMesh) {
   }
 }
 
+// With a non-zero MLP_Delta, ArticulateMesh and SkinningWeightsAt add the
+// forward delta logits (rest-pose code) exactly as the templated warp does.
+TEST(ArticulateMesh, DeltaSkinningLogitsEnterTheForwardWarp) {
+  ModelOptions options;
+  options.field.sdf_width = 64;
+  options.field.init_sphere_radius = kRadius;
+  options.num_bones = 3;
+  options.delta_skinning.enabled = true;
+  options.delta_skinning.width = 8;
+  options.delta_skinning.pose_code_dim = 2;
+  PinholeCamera camera;
+  camera.width = camera.height = 64;
+  camera.intrinsics = Eigen::Vector4d(60, 60, 32, 32);
+  Model model(options, {2}, {camera});
+  const TriangleMesh canonical = ExtractCanonicalMesh(model, Quick(16));
+  // Without delta logits the weights are the Gaussian ones.
+  EXPECT_EQ(ForwardDeltaLogits(model, canonical.vertices).rows(), 0);
+  const Eigen::MatrixXd gaussian = SkinningWeightsAt(model, canonical.vertices);
+  for (int k = 0; k < model.delta_skinning_size(); ++k) {
+    model.delta_skinning_params()[k] = 0.5 * std::sin(1.7 * k + 0.3);
+  }
+  ASSERT_TRUE(model.DeltaSkinningIsNonZero());
+  for (int b = 0; b < 3; ++b) {
+    const Pose j = PoseFromAngleAxis(Eigen::Vector3d(0.2 * b, -0.1, 0.3),
+                                     Eigen::Vector3d(0.05 * b, 0.1, -0.05));
+    std::copy(j.data(), j.data() + kPoseSize, model.frame(0, 1).bones_t.data() + kPoseSize * b);
+  }
+  const TriangleMesh posed = ArticulateMesh(model, canonical, 0, 1);
+  const Eigen::MatrixXd weights = SkinningWeightsAt(model, canonical.vertices);
+  const Pose camera_from_root = model.RootPose(0, 1);
+  double weight_change = 0.0;
+  for (int i = 0; i < canonical.NumVertices(); ++i) {
+    double delta[3], x_root[3], expected[3], logits[3], w[3];
+    model.delta_skinning()->Logits(model.delta_skinning_params(), canonical.vertices.col(i).data(),
+                                   model.rest_pose_code(), delta);
+    ForwardWarp(3, model.bones(), model.frame(0, 1).bones_t.data(),
+                canonical.vertices.col(i).data(), x_root, delta);
+    PoseTransformPoint(camera_from_root.data(), x_root, expected);
+    // Batched MLP against the single-point path: same arithmetic up to GEMM
+    // order (1e-12 on unit-size coordinates).
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(posed.vertices(c, i), expected[c], 1e-12);
+    for (int b = 0; b < 3; ++b) {
+      logits[b] =
+          BoneLogit(model.bones() + kBoneSize * b, canonical.vertices.col(i).data()) + delta[b];
+    }
+    SkinningWeights(3, logits, w);
+    for (int b = 0; b < 3; ++b) {
+      EXPECT_NEAR(weights(b, i), w[b], 1e-12);
+      weight_change = std::max(weight_change, std::abs(weights(b, i) - gaussian(b, i)));
+    }
+  }
+  EXPECT_GT(weight_change, 1e-3);  // the delta logits matter
+}
+
 TEST(Skinning, WeightsBonesAndDominantColours) {
   auto model = SphereModel(3);
   const TriangleMesh canonical = ExtractCanonicalMesh(*model, Quick(24));

@@ -314,7 +314,19 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].schedule.anneal_end_fraction",
        [&](SolverConfig* c) { S(c).schedule.anneal_end_fraction = 2; }},
       {"stages[1].schedule.delta_skinning_from",
-       [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = 0.5; }},
+       [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = 0.5; }},  // model has none
+      {"stages[1].schedule.delta_skinning_from",
+       [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = -0.5; }},
+      {"model.delta_skinning.width",
+       [&](SolverConfig* c) {
+         c->model.delta_skinning.enabled = true;
+         c->model.delta_skinning.width = 0;
+       }},
+      {"model.delta_skinning.enabled",
+       [&](SolverConfig* c) {
+         c->model.delta_skinning.enabled = true;
+         c->model.num_bones = 0;
+       }},
       {"stages[1].checkpoint_every", [&](SolverConfig* c) { S(c).checkpoint_every = -1; }},
       {"stages[1].log_every", [&](SolverConfig* c) { S(c).log_every = -1; }},
   };
@@ -422,6 +434,12 @@ SolverConfig EveryFieldChanged() {
   m.init_bone_scale = 0.1 / 3.0;  // not exactly representable in short decimal
   m.init_beta = 0.07;
   m.seed = 4000000000u;
+  m.delta_skinning.enabled = true;
+  m.delta_skinning.width = 24;
+  m.delta_skinning.hidden_layers = 3;
+  m.delta_skinning.num_bands = 5;
+  m.delta_skinning.pose_code_dim = 12;
+  m.delta_skinning.code_init_std = 0.07;
   c.seed = 123456789u;
   c.threads = 3;
   for (int i = 0; i < 2; ++i) {
@@ -453,7 +471,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.bone_reinit_at = {0.1, 0.9};
     s.schedule.bounds_refresh_every = 25;
     s.schedule.anneal_end_fraction = 0.4;
-    s.schedule.delta_skinning_from = 1.5;  // >= 1: delta skinning is not available yet
+    s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
     s.checkpoint_every = 50;
     s.log_every = 5;
     c.stages.push_back(s);
@@ -496,6 +514,12 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
   EXPECT_EQ(a.model.init_bone_scale, b.model.init_bone_scale);
   EXPECT_EQ(a.model.init_beta, b.model.init_beta);
   EXPECT_EQ(a.model.seed, b.model.seed);
+  EXPECT_EQ(a.model.delta_skinning.enabled, b.model.delta_skinning.enabled);
+  EXPECT_EQ(a.model.delta_skinning.width, b.model.delta_skinning.width);
+  EXPECT_EQ(a.model.delta_skinning.hidden_layers, b.model.delta_skinning.hidden_layers);
+  EXPECT_EQ(a.model.delta_skinning.num_bands, b.model.delta_skinning.num_bands);
+  EXPECT_EQ(a.model.delta_skinning.pose_code_dim, b.model.delta_skinning.pose_code_dim);
+  EXPECT_EQ(a.model.delta_skinning.code_init_std, b.model.delta_skinning.code_init_std);
   EXPECT_EQ(a.seed, b.seed);
   EXPECT_EQ(a.threads, b.threads);
   ASSERT_EQ(a.stages.size(), b.stages.size());

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -22,6 +23,12 @@ using testing::AllParameters;
 const Dataset& TinyDataset(uint64_t seed = 1) { return testing::TinyQuadrupedDataset(seed); }
 SolverConfig TinyConfig(const std::string& step_rule, int iterations) {
   return testing::TinySolverConfig(step_rule, iterations);
+}
+
+SolveOptions options_quiet() {
+  SolveOptions o;
+  o.quiet = true;
+  return o;
 }
 
 double Total(const TermLosses& l) {
@@ -86,6 +93,55 @@ TEST(Solver, OnBatchSeesEveryBatchInOrder) {
   }
   EXPECT_EQ(seen.back().stage_name, "second");
   EXPECT_EQ(seen.back().stage_iterations, 3);
+}
+
+// Delta skinning switched on at half the stage: before, MLP_Delta and the
+// pose codes stay untouched (output layer zero, left out of the batch);
+// after, they move and the run stays finite.
+TEST(Solver, DeltaSkinningSwitchesOnFromAFraction) {
+  const Dataset& data = TinyDataset();
+  SolverConfig config = TinyConfig("adam", 20);
+  config.model.delta_skinning.enabled = true;
+  config.model.delta_skinning.width = 8;
+  config.model.delta_skinning.pose_code_dim = 4;
+  config.stages[0].schedule.delta_skinning_from = 0.5;
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  const std::vector<double> code0 = solver.model().frame(0, 0).pose_code;
+  const std::vector<double> delta0(
+      solver.model().delta_skinning_params(),
+      solver.model().delta_skinning_params() + solver.model().delta_skinning_size());
+  SolveOptions options;
+  options.quiet = true;
+  bool zero_before = true, nonzero_after = false;
+  options.on_batch = [&](const BatchProgress& p, const Model& model) {
+    if (p.iteration <= 10) zero_before = zero_before && !model.DeltaSkinningIsNonZero();
+    if (p.iteration == 20) nonzero_after = model.DeltaSkinningIsNonZero();
+    if (p.iteration == 10) {
+      EXPECT_TRUE(std::equal(delta0.begin(), delta0.end(), model.delta_skinning_params()));
+    }
+  };
+  const SolveResult r = solver.Run(options);
+  EXPECT_TRUE(r.stages[0].finite);
+  EXPECT_TRUE(zero_before);
+  EXPECT_TRUE(nonzero_after);
+  bool codes_moved = false;
+  for (int t = 0; t < 6; ++t) {
+    codes_moved = codes_moved || solver.model().frame(0, t).pose_code != code0;
+  }
+  EXPECT_TRUE(codes_moved);
+
+  // The other step rules with delta skinning on from the start (LM uses the
+  // full per-row Jacobians, including the 3D cycle's MLP_Delta rows).
+  for (const std::string rule : {"lm", "alternate"}) {
+    SolverConfig c = TinyConfig(rule, 4);
+    c.model.delta_skinning = config.model.delta_skinning;
+    c.stages[0].schedule.delta_skinning_from = 0.0;
+    c.stages[0].losses.cycle_3d.weight = 1.0;
+    Solver s2(data, c, MakeModelForDataset(data, c.model));
+    const SolveResult r2 = s2.Run(options_quiet());
+    EXPECT_TRUE(r2.stages[0].finite) << rule;
+    EXPECT_TRUE(s2.model().DeltaSkinningIsNonZero()) << rule;
+  }
 }
 
 TEST(Solver, ResumeGivesTheSameResultAsAnUninterruptedRun) {

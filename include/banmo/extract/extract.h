@@ -92,14 +92,20 @@ Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> CanonicalColors(const Model& mode
                                                                const Eigen::Matrix3Xd& points,
                                                                int video);
 
+// Delta-skinning logits of the forward warps at canonical points (B x n:
+// MLP_Delta with the rest-pose code omega^*), or a 0 x n matrix when the
+// model has no delta skinning or its output is identically zero.
+Eigen::MatrixXd ForwardDeltaLogits(const Model& model, const Eigen::Matrix3Xd& points);
+
 // The canonical mesh posed at frame `frame` of video `video`, in that frame's
-// camera coordinates (forward warp with rest bones, then G^t). Faces and
-// colours are those of `canonical`.
+// camera coordinates (forward warp with rest bones and the forward delta
+// logits, then G^t). Faces and colours are those of `canonical`.
 TriangleMesh ArticulateMesh(const Model& model, const TriangleMesh& canonical, int video,
                             int frame);
 
 // Skinning weights (B x V) of canonical points with the rest bones
-// (softmax of the Gaussian logits, deform/bones.h). Empty (0 x V) if B = 0.
+// (softmax of the Gaussian logits plus the forward delta logits, Eq. 14;
+// they do not depend on the frame). Empty (0 x V) if B = 0.
 Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& points);
 
 // Colour of bone b in the fixed palette used by the inspection files.

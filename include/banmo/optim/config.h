@@ -75,11 +75,12 @@ struct ScheduleConfig {
   std::vector<double> bone_reinit_at;  // fractions of the stage at which bones are re-initialised
   int bounds_refresh_every = 0;        // batches between canonical-bounds refreshes (0 = never)
   double anneal_end_fraction = 0.0;    // coarse-to-fine PE annealing reaches all bands here (0 = off)
-  double delta_skinning_from = 1.0;    // fraction from which delta skinning is on (>= 1: never)
+  double delta_skinning_from = 1.0;    // fraction from which delta skinning is free (>= 1: never)
 };
 
 // Parameter groups that can be held constant (ceres SetParameterBlockConstant).
-// Names: sdf, color, embedding, log_beta, appearance, root, bones, bones_t, intrinsics.
+// Names: sdf, color, embedding, log_beta, appearance, root, bones, bones_t, intrinsics,
+// delta_skinning, pose_code (docs/config.md).
 struct StageConfig {
   std::string name = "stage";
   int iterations = 100;                 // minibatches

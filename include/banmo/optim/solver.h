@@ -12,7 +12,8 @@
 //             what ceres::Problem::Evaluate gives, without forming the rays'
 //             Jacobians; manifolds and constant blocks respected: steps are
 //             taken in the tangent space);
-//   alternate Adam on the field MLPs, then LM on the small coupled blocks
+//   alternate Adam on the field MLPs and codes (delta skinning included),
+//             then LM on the small coupled blocks
 //             (root poses, bones, bone transforms) with the fields constant.
 // Checkpoints are atomic, on a schedule and on SIGINT; a resumed run gives
 // the same result as an uninterrupted one with the same seed.
@@ -118,8 +119,9 @@ class Solver {
   // margin, within [-2, 2]^3); unchanged if the level set is empty.
   void RefreshBounds();
   // Rest bones re-initialised on the current surface (k-means of a coarse
-  // extraction), bone transforms reset to the identity, their Adam moments
-  // cleared.
+  // extraction), bone transforms reset to the identity, MLP_Delta's output
+  // layer reset to zero (its logits belonged to the old bones), their Adam
+  // moments cleared.
   void ReinitializeBones(State* state);
 
   const Dataset& dataset_;
