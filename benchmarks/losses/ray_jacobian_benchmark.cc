@@ -2,10 +2,15 @@
 // term of a ray): the batched mixed-mode path (RayBatch, DESIGN.md Sec. 5)
 // against the full-Jet reference, at MLP width 16/32/64, 32 samples per ray,
 // 8 bones, all losses on, positional encoding with 6 bands, 3 hidden SDF
-// layers.
+// layers; second argument: delta skinning off/on (MLP_Delta of the same
+// width, 1 hidden layer, non-zero output layer). BM_RayGradient_Batched is
+// the first-order path Adam uses (RayBatch::EvaluateGradient: one cotangent
+// row per ray, no Jacobian).
 //
 //   ./build/bin/ray_jacobian_benchmark --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
+
+#include <map>
 
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
@@ -14,8 +19,9 @@
 namespace banmo {
 namespace {
 
-TestSceneOptions BenchmarkScene(int width, int num_rays) {
+TestSceneOptions BenchmarkScene(int width, int num_rays, bool delta_skinning) {
   TestSceneOptions o;
+  o.delta_skinning = delta_skinning;
   o.mlp_width = width;
   o.sdf_layers = 3;
   o.num_bands = 6;
@@ -34,20 +40,33 @@ constexpr LossTerm kTerms[] = {LossTerm::kRgb,          LossTerm::kSilhouette, L
 void BM_RayJacobian_Batched(benchmark::State& state) {
   const int width = static_cast<int>(state.range(0));
   constexpr int kRays = 512;
-  TestScene scene = MakeTestScene(BenchmarkScene(width, kRays));
+  TestScene scene = MakeTestScene(BenchmarkScene(width, kRays, state.range(1) != 0));
   for (auto _ : state) {
     scene.batch->EvaluateAll(/*jacobians=*/true);
     benchmark::DoNotOptimize(scene.batch->evaluation(0).residuals.data());
   }
   state.counters["rays_per_s"] = benchmark::Counter(static_cast<double>(kRays) * state.iterations(),
                                                     benchmark::Counter::kIsRate);
-  state.counters["weights"] =
-      scene.model->sdf_size() + scene.model->color_size() + scene.model->embedding_size();
+  state.counters["weights"] = scene.model->sdf_size() + scene.model->color_size() +
+                              scene.model->embedding_size() + scene.model->delta_skinning_size();
+}
+
+void BM_RayGradient_Batched(benchmark::State& state) {
+  const int width = static_cast<int>(state.range(0));
+  constexpr int kRays = 512;
+  TestScene scene = MakeTestScene(BenchmarkScene(width, kRays, state.range(1) != 0));
+  const RayRobustLosses robust{};
+  for (auto _ : state) {
+    std::map<const double*, Eigen::VectorXd> gradient;
+    benchmark::DoNotOptimize(scene.batch->EvaluateGradient(robust, &gradient));
+  }
+  state.counters["rays_per_s"] = benchmark::Counter(static_cast<double>(kRays) * state.iterations(),
+                                                    benchmark::Counter::kIsRate);
 }
 
 void BM_RayJacobian_FullJet(benchmark::State& state) {
   const int width = static_cast<int>(state.range(0));
-  TestScene scene = MakeTestScene(BenchmarkScene(width, 1));
+  TestScene scene = MakeTestScene(BenchmarkScene(width, 1, state.range(1) != 0));
   RayBatch& batch = *scene.batch;
   std::vector<std::unique_ptr<ceres::CostFunction>> costs;
   std::vector<std::vector<double*>> params;
@@ -75,15 +94,18 @@ void BM_RayJacobian_FullJet(benchmark::State& state) {
 }
 
 BENCHMARK(BM_RayJacobian_Batched)
-    ->Arg(16)
-    ->Arg(32)
-    ->Arg(64)
+    ->ArgsProduct({{16, 32, 64}, {0, 1}})
+    ->ArgNames({"width", "delta"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_RayGradient_Batched)
+    ->ArgsProduct({{16, 32, 64}, {0, 1}})
+    ->ArgNames({"width", "delta"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_RayJacobian_FullJet)
-    ->Arg(16)
-    ->Arg(32)
-    ->Arg(64)
+    ->ArgsProduct({{16, 32, 64}, {0, 1}})
+    ->ArgNames({"width", "delta"})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(2)
     ->UseRealTime();

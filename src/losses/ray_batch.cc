@@ -334,7 +334,7 @@ void RayBatch::EvaluateAll(bool jacobians) {
 }
 
 double RayBatch::EvaluateGradient(const RayRobustLosses& robust,
-                                  std::map<const double*, Eigen::VectorXd>* gradient) const {
+                                  std::map<const double*, Eigen::VectorXd>* gradient) {
   CHECK(gradient != nullptr);
   std::vector<const Ray*> rays(rays_.size());
   std::vector<RayParameters> params(rays_.size());
@@ -371,6 +371,14 @@ double RayBatch::EvaluateGradient(const RayRobustLosses& robust,
     if (model_->embedding_size() > 0) add(model_->embedding(), mlp[2]);
     if (delta_skinning_) add(model_->delta_skinning_params(), mlp[3]);
   }
+  // The residuals serve as the value cache; the gradient rows are dropped.
+  for (RayEvaluation& ev : evals) {
+    for (RowMajorMatrix& j : ev.jacobians) j.resize(0, 0);
+    ev.has_jacobians = false;
+  }
+  evaluations_ = std::move(evals);
+  cache_valid_ = true;
+  cache_has_jacobians_ = false;
   return cost;
 }
 

@@ -552,8 +552,18 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         }
         return out;
       };
-      auto adam_step = [&](const std::vector<double*>& blocks) {
-        if (blocks.empty()) return;
+      // after_gradient (optional) runs once the gradient is known and before
+      // the update, when the batch's value cache holds the residuals at the
+      // step's starting point.
+      auto adam_step = [&](const std::vector<double*>& blocks,
+                           const std::function<void()>& after_gradient) {
+        if (blocks.empty()) {
+          if (after_gradient) {
+            batch.EvaluateAll(false);
+            after_gradient();
+          }
+          return;
+        }
         // The gradient of the cost in the tangent space of each block, in
         // the order of `blocks`.
         std::vector<double> gradient;
@@ -597,6 +607,10 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
             const Eigen::VectorXd gt = plus.transpose() * g;
             gradient.insert(gradient.end(), gt.data(), gt.data() + tangent);
           }
+        }
+        if (after_gradient) {
+          CHECK(batch.cache_valid());
+          after_gradient();
         }
         const AdamConfig& a = stage.adam;
         const double lr = LearningRate(a, it, stage.iterations);
@@ -677,37 +691,44 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         batch.Invalidate();
       };
 
-      // Losses at the batch's starting point, for progress and active sampling.
-      batch.EvaluateAll(false);
+      // Losses at the batch's starting point, for progress and active
+      // sampling, from the batch's value cache (Adam: filled by its gradient
+      // evaluation, so no extra forward pass).
       TermLosses losses;
       std::vector<double> errors(batch.num_rays(), 0.0);
-      for (int r = 0; r < batch.num_rays(); ++r) {
-        const RayEvaluation& ev = batch.evaluation(r);
-        const int n = batch.rays()[r].NumSamples();
-        for (int t = 0; t < kNumLossTerms; ++t) {
-          if (ev.term_row[t] < 0) continue;
-          const LossTerm term = static_cast<LossTerm>(t);
-          double sq = 0.0;
-          for (int k = 0; k < LossTermResiduals(term, n); ++k) {
-            sq += ev.residuals[ev.term_row[t] + k] * ev.residuals[ev.term_row[t] + k];
+      auto record_losses = [&] {
+        for (int r = 0; r < batch.num_rays(); ++r) {
+          const RayEvaluation& ev = batch.evaluation(r);
+          const int n = batch.rays()[r].NumSamples();
+          for (int t = 0; t < kNumLossTerms; ++t) {
+            if (ev.term_row[t] < 0) continue;
+            const LossTerm term = static_cast<LossTerm>(t);
+            double sq = 0.0;
+            for (int k = 0; k < LossTermResiduals(term, n); ++k) {
+              sq += ev.residuals[ev.term_row[t] + k] * ev.residuals[ev.term_row[t] + k];
+            }
+            losses[LossTermName(term)] += 0.5 * sq / batch.num_rays();
+            if (term == LossTerm::kRgb || term == LossTerm::kSilhouette) errors[r] += sq;
           }
-          losses[LossTermName(term)] += 0.5 * sq / batch.num_rays();
-          if (term == LossTerm::kRgb || term == LossTerm::kSilhouette) errors[r] += sq;
         }
-      }
-      sampler.RecordErrors(batch.rays(), errors);
+        sampler.RecordErrors(batch.rays(), errors);
+      };
 
       if (stage.step_rule == "adam") {
-        adam_step(free_blocks({}));
-      } else if (stage.step_rule == "lm") {
-        lm_step({});
-      } else {  // alternate
-        // Fields and codes by Adam (MLP_Delta and its pose codes are fields),
-        // then the coupled poses and bones by LM.
-        const std::set<std::string> fields = {
-            "sdf", "color", "embedding", "log_beta", "appearance", "delta_skinning", "pose_code"};
-        adam_step(free_blocks(fields));
-        lm_step(fields);
+        adam_step(free_blocks({}), record_losses);
+      } else {
+        batch.EvaluateAll(false);
+        record_losses();
+        if (stage.step_rule == "lm") {
+          lm_step({});
+        } else {  // alternate
+          // Fields and codes by Adam (MLP_Delta and its pose codes are
+          // fields), then the coupled poses and bones by LM.
+          const std::set<std::string> fields = {
+              "sdf", "color", "embedding", "log_beta", "appearance", "delta_skinning", "pose_code"};
+          adam_step(free_blocks(fields), nullptr);
+          lm_step(fields);
+        }
       }
 
       // Set constancy back (lm_step's hold toggled variable blocks).

@@ -159,10 +159,12 @@ class RayBatch : public ceres::EvaluationCallback {
   // (model pointers as in ModelParameters; MLP blocks included; an absent
   // entry is created as zeros). Gradients are ambient (no manifold applied).
   // Deterministic: fixed summation order, independent of the thread count
-  // except inside the MLP backward pass (fixed per thread count). Leaves the
-  // cache untouched.
+  // except inside the MLP backward pass (fixed per thread count). The
+  // residuals of this evaluation become the value cache (evaluation(r),
+  // without Jacobians), so a caller needs no second forward pass for the
+  // batch's losses.
   double EvaluateGradient(const RayRobustLosses& robust,
-                          std::map<const double*, Eigen::VectorXd>* gradient) const;
+                          std::map<const double*, Eigen::VectorXd>* gradient);
 
   // Marks the cache stale (e.g. after parameters were changed outside Ceres).
   void Invalidate() { cache_valid_ = false; }
