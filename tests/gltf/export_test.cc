@@ -16,6 +16,7 @@
 
 #include "banmo/extract/extract.h"
 #include "banmo/gltf/validate.h"
+#include "banmo/optim/checkpoint.h"
 #include "banmo/synth/gltf_rig.h"
 #include "banmo/synth/rig.h"
 #include "banmo/util/error.h"
@@ -119,6 +120,12 @@ TEST_F(GltfExport, RoundTripMatchesArticulateMeshUpToTop4Truncation) {
   EXPECT_EQ(gltf.animations[1].name, "video01");
   ASSERT_EQ(gltf.skins.size(), 1u);
   EXPECT_EQ(gltf.skins[0].joints.size(), 10u);
+
+  // Weight sums: within a float ulp or two of 1 (docs/export.md).
+  const Eigen::MatrixXd w = testing::ReadAccessor(
+      gltf, gltf.meshes[0].primitives[0].attributes.at("WEIGHTS_0"));
+  EXPECT_LE((w.colwise().sum().array() - 1.0).abs().maxCoeff(), 2.4e-7);
+  EXPECT_GE(w.minCoeff(), 0.0);
 
   // The rig loader of the synth module (independent code) as a second check.
   const synth::Rig rig = synth::LoadGltfRig(path.string());
@@ -421,6 +428,58 @@ TEST(GltfValidateShared, FoxPasses) {
   o.weight_sum_tolerance = 1e-2;
   const std::vector<std::string> problems = ValidateGltf(fox, o);
   EXPECT_TRUE(problems.empty()) << problems[0];
+}
+
+}  // namespace
+}  // namespace banmo
+
+namespace banmo {
+namespace {
+
+// Measurement on a real checkpoint (docs/export.md), skipped unless
+//   BANMO_GLTF_MEASURE_MODEL=<checkpoint folder> and
+//   BANMO_GLTF_MEASURE_GLB=<file written by banmo export from it>
+//   BANMO_GLTF_MEASURE_RESOLUTION=<its --resolution> (default 128)
+// are set: every key frame of every video posed with the spec evaluator,
+// against top-4 LBS in double and ArticulateMesh.
+TEST(GltfExportMeasure, CheckpointFromEnvironment) {
+  const char* model_dir = std::getenv("BANMO_GLTF_MEASURE_MODEL");
+  const char* glb = std::getenv("BANMO_GLTF_MEASURE_GLB");
+  if (model_dir == nullptr || glb == nullptr) GTEST_SKIP() << "measurement variables not set";
+  const char* res = std::getenv("BANMO_GLTF_MEASURE_RESOLUTION");
+  const auto model = LoadCheckpoint(model_dir);
+  ExtractOptions e;
+  e.grid.resolution = res != nullptr ? std::atoi(res) : 128;
+  const TriangleMesh canonical = ExtractCanonicalMesh(*model, e);
+  tinygltf::Model gltf;
+  ReadGltf(glb, &gltf);
+  ASSERT_TRUE(ValidateGltf(gltf).empty());
+  const double fps = [&] {
+    const Eigen::MatrixXd t = testing::ReadAccessor(gltf, gltf.animations[0].samplers[0].input);
+    return 1.0 / t(0, 1);  // keys at t / fps
+  }();
+  double export_error = 0, truncation_error = 0, total_error = 0, extent = 0;
+  int frames = 0;
+  for (int v = 0; v < model->num_videos(); ++v) {
+    for (int t = 0; t < static_cast<int>(model->video(v).frames.size()); ++t) {
+      const Eigen::Matrix3Xd posed =
+          GltfToOpenCv(SpecPosedPositions(gltf, v, testing::KeyTime(t, fps)));
+      ASSERT_EQ(posed.cols(), canonical.NumVertices());
+      const Eigen::Matrix3Xd full = ArticulateMesh(*model, canonical, v, t).vertices;
+      const Eigen::Matrix3Xd top4 = TopKLbs(*model, canonical, v, t);
+      export_error = std::max(export_error, MaxVertexError(posed, top4));
+      truncation_error = std::max(truncation_error, MaxVertexError(top4, full));
+      total_error = std::max(total_error, MaxVertexError(posed, full));
+      extent = std::max(extent, (full.rowwise().maxCoeff() - full.rowwise().minCoeff()).norm());
+      ++frames;
+    }
+  }
+  std::printf(
+      "%s: %d vertices, %d frames, mesh diagonal up to %.4f: max vertex error glTF vs top-4 LBS "
+      "%.3g, top-4 truncation %.3g, glTF vs ArticulateMesh %.3g\n",
+      model_dir, canonical.NumVertices(), frames, extent, export_error, truncation_error,
+      total_error);
+  EXPECT_LT(export_error, kFloatTolerance);
 }
 
 }  // namespace
