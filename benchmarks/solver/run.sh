@@ -1,0 +1,158 @@
+#!/usr/bin/env bash
+# Speed against error and stability (issue 6), one command:
+#   bash benchmarks/solver/run.sh [--quick] [--fox] [--resume] [--only NAME,NAME] [--no-stability]
+#                                 [--no-compare]
+# Builds banmo and banmo_trace, makes the named scenes (scenes.txt, cached),
+# runs every named configuration (configs.txt) on the comparison scene and
+# every stability case (stability.txt) with banmo_trace, then draws the plots
+# (plots/<mode>_<axis>.png), writes results/<mode>/traces.csv and the Pareto and
+# stability tables into benchmarks/README.md (between marker comments), and
+# prints its own run time. README.md in this folder documents everything.
+#   --quick         tiny scenes and budgets: proves the pipeline in minutes
+#   --fox           (full mode) also adam / lm / alternate on the Fox for 30 min each
+#   --resume        keep runs that finished (OUT/done) instead of re-running them
+#   --only a,b      run only these configuration / stability names (tables use all CSVs present)
+# Environment: BANMO_BUILD_DIR (default build/), BANMO_SOURCE_DIR (sources to
+# build, default this checkout), BANMO_BENCH_OUT (default runs/bench).
+set -euo pipefail
+here="$(cd -P "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+root="$(cd -P "$here/../.." && pwd)"
+src="${BANMO_SOURCE_DIR:-$root}"
+build="${BANMO_BUILD_DIR:-$root/build}"
+out_root="${BANMO_BENCH_OUT:-$root/runs/bench}"
+
+mode=full
+fox=0
+resume=0
+only=""
+do_stability=1
+do_compare=1
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --quick) mode=quick ;;
+    --fox) fox=1 ;;
+    --resume) resume=1 ;;
+    --only) only="$2"; shift ;;
+    --no-stability) do_stability=0 ;;
+    --no-compare) do_compare=0 ;;
+    -h|--help) sed -n 2,20p "${BASH_SOURCE[0]}"; exit 0 ;;
+    *) echo "run.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+if [[ $fox == 1 && $mode == quick ]]; then
+  echo "run.sh: --fox is a full-mode option" >&2; exit 2
+fi
+
+start=$(date +%s)
+echo "[build] banmo banmo_trace in $build (sources $src)"
+cmake -S "$src" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j "${BANMO_JOBS:-$(nproc)}" --target banmo banmo_trace
+banmo="$build/bin/banmo"
+trace="$build/bin/banmo_trace"
+
+# Mode settings: base config, its budget overrides and the trace schedule.
+if [[ $mode == quick ]]; then
+  base="$root/problems/tiny.yaml"
+  budget=(--set "stages[0].iterations=40" --set "stages[1].iterations=5"
+          --set "stages[2].iterations=15")
+  schedule=(--every-batches 10 --resolution 40 --frame-step 5)
+  compare_scene=quad_q
+else
+  base="$root/problems/default.yaml"
+  budget=()
+  schedule=(--every-seconds 30 --resolution 64 --frame-step 4 --final-resolution 128)
+  compare_scene=quad
+fi
+work="$out_root/$mode"
+scenes_dir="$out_root/scenes"
+mkdir -p "$work" "$scenes_dir"
+
+selected() {  # selected NAME: is NAME in --only (or --only empty)?
+  [[ -z "$only" ]] && return 0
+  [[ ",$only," == *",$1,"* ]]
+}
+mode_ok() {  # mode_ok MODES
+  [[ $1 == all || $1 == "$mode" || ( $1 == fox && $fox == 1 ) ]]
+}
+
+make_scene() {  # make_scene NAME
+  local name="$1" line
+  line=$(awk -v n="$name" '$1 !~ /^#/ && $2 == n' "$here/scenes.txt")
+  if [[ -z "$line" ]]; then echo "run.sh: scene '$name' is not in scenes.txt" >&2; exit 2; fi
+  read -r _ _ rig videos frames size noise gaps seed scale anim <<<"$line"
+  local dir="$scenes_dir/$name"
+  if [[ -f "$dir/manifest.yaml" ]]; then return; fi
+  [[ $rig == *.glb || $rig == *.gltf ]] && rig="$root/$rig"
+  local extra=()
+  [[ -n "${anim:-}" ]] && extra=(--animation "$anim")
+  echo "[scene] $name: $rig, $videos x $frames frames, ${size} px, noise $noise deg, gaps $gaps, scale $scale"
+  "$banmo" synth --rig "$rig" "${extra[@]}" --videos "$videos" --frames "$frames" --size "$size" \
+    --pose-noise "$noise" --gaps "$gaps" --seed "$seed" --object-scale "$scale" \
+    --out "$dir" --overwrite >"$scenes_dir/$name.log"
+}
+
+run_trace() {  # run_trace KIND NAME SCENE BASE [extra args...] -- OVERRIDES...
+  local kind="$1" name="$2" scene="$3" cfg="$4"
+  shift 4
+  local extra=()
+  while [[ $# -gt 0 && "$1" != "--" ]]; do extra+=("$1"); shift; done
+  [[ $# -gt 0 ]] && shift
+  local sets=()
+  for o in "$@"; do sets+=(--set "$o"); done
+  local out="$work/$kind/$name"
+  if [[ $resume == 1 && -f "$out/done" ]]; then echo "[$kind] $name: done before, kept"; return; fi
+  make_scene "$scene"
+  rm -rf "$out"
+  mkdir -p "$out"
+  local t0=$(date +%s)
+  set +e
+  "$trace" --data "$scenes_dir/$scene" --config "$cfg" "${budget_for_run[@]}" "${sets[@]}" \
+    --out "$out" --config-name "$name" --scene-name "$scene" --quiet "${schedule[@]}" \
+    "${extra[@]}" >"$out/log.txt" 2>&1
+  local rc=$?
+  set -e
+  local last
+  last=$(tail -n 1 "$out/log.txt")
+  echo "[$kind] $name on $scene: exit $rc, $(( $(date +%s) - t0 )) s: $last"
+  if [[ $rc != 0 && $rc != 3 ]]; then
+    echo "run.sh: banmo_trace failed for $kind/$name (log: $out/log.txt)" >&2
+    tail -n 5 "$out/log.txt" >&2
+  fi
+}
+
+if [[ $do_compare == 1 ]]; then
+  budget_for_run=("${budget[@]}")
+  while read -r modes axes name overrides; do
+    [[ -z "$modes" || "$modes" == \#* ]] && continue
+    mode_ok "$modes" || continue
+    selected "$name" || continue
+    # shellcheck disable=SC2086
+    run_trace compare "$name" "$compare_scene" "$base" -- $overrides
+  done <"$here/configs.txt"
+  if [[ $fox == 1 ]]; then
+    budget_for_run=()
+    for rule in adam lm alternate; do
+      selected "fox_$rule" || continue
+      run_trace fox "fox_$rule" fox "$root/problems/fox.yaml" --max-solve-seconds 1800 -- \
+        "stages[*].step_rule=$rule"
+    done
+  fi
+fi
+if [[ $do_stability == 1 ]]; then
+  budget_for_run=("${budget[@]}")
+  while read -r modes name scene overrides; do
+    [[ -z "$modes" || "$modes" == \#* ]] && continue
+    mode_ok "$modes" || continue
+    selected "$name" || continue
+    # shellcheck disable=SC2086
+    run_trace stability "$name" "$scene" "$base" -- $overrides
+  done <"$here/stability.txt"
+fi
+
+runs_seconds=$(( $(date +%s) - start ))
+echo "[summary] plots, CSV and tables"
+python3 "$here/summarize.py" --mode "$mode" --work "$work" --here "$here" \
+  --readme "$root/benchmarks/README.md" --run-seconds "$runs_seconds" \
+  --command "bash benchmarks/solver/run.sh $( [[ $mode == quick ]] && echo --quick )$( [[ $fox == 1 ]] && echo ' --fox')"
+echo "[done] run.sh ($mode) in $(( $(date +%s) - start )) s"
