@@ -122,8 +122,8 @@ TEST_F(GltfExport, RoundTripMatchesArticulateMeshUpToTop4Truncation) {
   EXPECT_EQ(gltf.skins[0].joints.size(), 10u);
 
   // Weight sums: within a float ulp or two of 1 (docs/export.md).
-  const Eigen::MatrixXd w = testing::ReadAccessor(
-      gltf, gltf.meshes[0].primitives[0].attributes.at("WEIGHTS_0"));
+  const Eigen::MatrixXd w =
+      testing::ReadAccessor(gltf, gltf.meshes[0].primitives[0].attributes.at("WEIGHTS_0"));
   EXPECT_LE((w.colwise().sum().array() - 1.0).abs().maxCoeff(), 2.4e-7);
   EXPECT_GE(w.minCoeff(), 0.0);
 
@@ -211,6 +211,30 @@ TEST_F(GltfExport, ExactWithFourBonesOrFewer) {
   // Rest pose of the hierarchy (no animation) = bind pose = canonical mesh.
   EXPECT_LT(MaxVertexError(GltfToOpenCv(SpecPosedPositions(gltf, -1, 0)), canonical.vertices),
             kFloatTolerance);
+}
+
+// The forward delta-skinning logits use the rest-pose code, so the forward
+// weights do not depend on the frame and the export stays exact (3 bones: no
+// truncation).
+TEST_F(GltfExport, ExactWithForwardDeltaSkinning) {
+  const auto model = MakeExportTestModel(3, 13, /*delta_skinning=*/true);
+  ASSERT_TRUE(model->DeltaSkinningIsNonZero());
+  const fs::path path = dir_ / "delta.glb";
+  ExportGltf(*model, options_, path.string());
+  const TriangleMesh canonical = ExtractCanonicalMesh(*model, options_.extract);
+  // The delta logits really change the weights.
+  EXPECT_GT(ForwardDeltaLogits(*model, canonical.vertices).cwiseAbs().maxCoeff(), 0.1);
+  tinygltf::Model gltf;
+  ReadGltf(path.string(), &gltf);
+  for (int v = 0; v < 2; ++v) {
+    for (int t = 0; t < static_cast<int>(model->video(v).frames.size()); ++t) {
+      const Eigen::Matrix3Xd posed =
+          GltfToOpenCv(SpecPosedPositions(gltf, v, testing::KeyTime(t, options_.fps)));
+      EXPECT_LT(MaxVertexError(posed, ArticulateMesh(*model, canonical, v, t).vertices),
+                kFloatTolerance)
+          << v << ":" << t;
+    }
+  }
 }
 
 TEST_F(GltfExport, RigidModelHasRootAnimationOnly) {

@@ -26,9 +26,16 @@ namespace banmo::testing {
 // orientations and anisotropic scales, visible non-identity bone transforms
 // (rotations up to ~0.6 rad, translations up to 0.08) and root poses in front
 // of the camera, in 2 videos of 3 and 4 frames. Deterministic in seed.
-inline std::unique_ptr<Model> MakeExportTestModel(int num_bones, uint32_t seed) {
+// With `delta_skinning`, the model also has a delta-skinning MLP with random
+// weights (so its forward logits are not zero).
+inline std::unique_ptr<Model> MakeExportTestModel(int num_bones, uint32_t seed,
+                                                  bool delta_skinning = false) {
   ModelOptions o;
   o.num_bones = num_bones;
+  o.delta_skinning.enabled = delta_skinning;
+  o.delta_skinning.width = 8;
+  o.delta_skinning.hidden_layers = 1;
+  o.delta_skinning.num_bands = 2;
   o.field.position_encoding.num_bands = 2;
   o.field.sdf_width = 16;
   o.field.sdf_layers = 2;
@@ -65,6 +72,11 @@ inline std::unique_ptr<Model> MakeExportTestModel(int num_bones, uint32_t seed) 
     bone[kBoneQw + 2] = q.y();
     bone[kBoneQw + 3] = q.z();
     for (int k = 0; k < 3; ++k) bone[kBoneLogScale + k] = std::log(0.18 + 0.06 * u(rng));
+  }
+  if (delta_skinning) {
+    std::normal_distribution<double> n(0.0, 0.5);
+    for (int i = 0; i < model->delta_skinning_size(); ++i)
+      model->delta_skinning_params()[i] = n(rng);
   }
   for (int v = 0; v < model->num_videos(); ++v) {
     for (size_t t = 0; t < model->video(v).frames.size(); ++t) {
