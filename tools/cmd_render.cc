@@ -142,7 +142,7 @@ int RunRender(int argc, char** argv) {
   const std::unique_ptr<Model> model = LoadCheckpoint(model_dir, &info);
   // Sampling as the model was trained (the last stage of its config).
   bool trained_importance = false;
-  if (!info.config.empty()) {
+  if (info.config.find_first_not_of(" \t\r\n") != std::string::npos) {
     const SolverConfig config = ParseSolverConfig(info.config, model_dir + "/model.yaml");
     if (!config.stages.empty()) {
       const StageConfig& last = config.stages.back();

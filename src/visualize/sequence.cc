@@ -36,9 +36,8 @@ std::string FormatDouble(double x) {
 
 // Writes the panel images as an MP4 with the first codec OpenCV's FFmpeg
 // backend accepts; returns an empty string and sets *note if none does.
-std::string WriteVideo(const std::vector<std::string>& pngs, const std::vector<cv::Mat>& images,
-                       double fps, const std::string& path, std::string* note) {
-  (void)pngs;
+std::string WriteVideo(const std::vector<cv::Mat>& images, double fps, const std::string& path,
+                       std::string* note) {
   if (images.empty()) {
     *note = "no frames";
     return "";
@@ -172,7 +171,6 @@ SequenceSummary RenderSequence(
   csv << "video,frame,partner_frame,rgb_error,mask_error,mask_iou,flow_epe,rgb_pixels,"
          "mask_pixels,flow_pixels,volume_seconds,total_seconds\n";
   std::vector<cv::Mat> video_frames;
-  std::vector<std::string> pngs;
   int done = 0;
   for (const auto& [v, t] : frames) {
     Timer frame_timer;
@@ -215,7 +213,7 @@ SequenceSummary RenderSequence(
 
   if (options.write_video) {
     summary.video_path =
-        WriteVideo(pngs, video_frames, options.fps, out_dir + "/sequence.mp4", &summary.video_note);
+        WriteVideo(video_frames, options.fps, out_dir + "/sequence.mp4", &summary.video_note);
   }
 
   if (options.turntable_views > 0 && canonical.NumFaces() > 0) {
