@@ -56,7 +56,7 @@ if [[ $mode == quick ]]; then
   base="$root/problems/tiny.yaml"
   budget=(--set "stages[0].iterations=40" --set "stages[1].iterations=5"
           --set "stages[2].iterations=15")
-  schedule=(--every-batches 10 --resolution 40 --frame-step 5)
+  schedule=(--every-batches 15 --resolution 40 --frame-step 10)
   compare_scene=quad_q
 else
   base="$root/problems/default.yaml"
@@ -105,7 +105,8 @@ run_trace() {  # run_trace KIND NAME SCENE BASE [extra args...] -- OVERRIDES...
   make_scene "$scene"
   rm -rf "$out"
   mkdir -p "$out"
-  local t0=$(date +%s)
+  local t0
+  t0=$(date +%s)
   set +e
   "$trace" --data "$scenes_dir/$scene" --config "$cfg" "${budget_for_run[@]}" "${sets[@]}" \
     --out "$out" --config-name "$name" --scene-name "$scene" --quiet "${schedule[@]}" \
@@ -123,7 +124,7 @@ run_trace() {  # run_trace KIND NAME SCENE BASE [extra args...] -- OVERRIDES...
 
 if [[ $do_compare == 1 ]]; then
   budget_for_run=("${budget[@]}")
-  while read -r modes axes name overrides; do
+  while read -r modes _axes name overrides; do
     [[ -z "$modes" || "$modes" == \#* ]] && continue
     mode_ok "$modes" || continue
     selected "$name" || continue

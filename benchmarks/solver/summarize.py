@@ -133,6 +133,9 @@ def plot_axis(here, mode, axis, names, runs, tmp):
         files.append((name, path))
     if not files:
         return None
+    def title(n):
+        return n + " (base config)" if n == "adam" else n
+
     png = os.path.join(here, "plots", f"{mode}_{axis}.png")
     os.makedirs(os.path.dirname(png), exist_ok=True)
     label = "QUICK SMOKE RUN (tiny budgets, not a result)" if mode == "quick" else "full run"
@@ -145,9 +148,9 @@ def plot_axis(here, mode, axis, names, runs, tmp):
         "set key outside bottom center horizontal",
         "set xlabel 'solve seconds (without trace evaluations)'",
         "set ylabel 'Chamfer distance (cm, banmo protocol, trace resolution)'",
-        "plot " + ", ".join(f"'{p}' using 1:2 with linespoints title '{n}'" for n, p in files),
+        "plot " + ", ".join(f"'{p}' using 1:2 with linespoints title '{title(n)}'" for n, p in files),
         "set ylabel 'F@2% (percent)'",
-        "plot " + ", ".join(f"'{p}' using 1:3 with linespoints title '{n}'" for n, p in files),
+        "plot " + ", ".join(f"'{p}' using 1:3 with linespoints title '{title(n)}'" for n, p in files),
         "unset multiplot",
     ]
     subprocess.run(["gnuplot"], input="\n".join(script), text=True, check=True)
