@@ -112,7 +112,8 @@ int RunRender(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--no-labels", no_labels, "No text labels on the panels");
   app.add_flag("--video", options.write_video,
-               "Also write OUT/sequence.mp4 of the panel images (OpenCV VideoWriter)");
+               "Also write OUT/sequence.mp4 of the panel images (and OUT/turntable.mp4 with "
+               "--turntable) with OpenCV's VideoWriter");
   app.add_option("--fps", options.fps, "Frames per second of the MP4")->capture_default_str();
   app.add_option("--turntable", options.turntable_views,
                  "Also write N views of the canonical mesh turning about its y axis "
@@ -234,8 +235,10 @@ int RunRender(int argc, char** argv) {
                     : (summary.video_path + " (" + summary.video_note + ")").c_str());
   }
   if (options.turntable_views > 0) {
-    std::printf("turntable: %d views in %s/turntable\n", summary.turntable_written,
-                out_dir.c_str());
+    std::printf(
+        "turntable: %d views in %s/turntable%s\n", summary.turntable_written, out_dir.c_str(),
+        summary.turntable_video_path.empty() ? ""
+                                             : (" and " + summary.turntable_video_path).c_str());
   }
   std::printf(
       "wrote %zu frames to %s/frames, error maps to %s/errors, means to %s/errors.csv; "

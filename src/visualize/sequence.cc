@@ -232,6 +232,7 @@ SequenceSummary RenderSequence(
     MakeDirectories(out_dir + "/turntable");
     ShadeOptions shade;
     shade.use_vertex_colors = true;
+    std::vector<cv::Mat> turntable_frames;
     for (int i = 0; i < options.turntable_views; ++i) {
       const double angle = 2.0 * M_PI * i / options.turntable_views;
       const Eigen::Matrix3d r =
@@ -243,8 +244,15 @@ SequenceSummary RenderSequence(
       }
       char name[32];
       std::snprintf(name, sizeof(name), "view%03d.png", i);
-      WriteFileAtomic(out_dir + "/turntable/" + name, EncodePng(ShadeMesh(view, scaled, shade)));
+      const cv::Mat image = ShadeMesh(view, scaled, shade);
+      WriteFileAtomic(out_dir + "/turntable/" + name, EncodePng(image));
+      if (options.write_video) turntable_frames.push_back(image);
       ++summary.turntable_written;
+    }
+    if (options.write_video) {
+      std::string note;
+      summary.turntable_video_path =
+          WriteVideo(turntable_frames, options.fps, out_dir + "/turntable.mp4", &note);
     }
   }
   return summary;

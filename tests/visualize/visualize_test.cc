@@ -336,6 +336,8 @@ TEST(RenderSequence, WritesOnePngPerFrameTheErrorMapsAndTheTable) {
     ++read;
   }
   EXPECT_EQ(read, 2);
+  EXPECT_EQ(s.turntable_video_path, (out / "turntable.mp4").string());
+  EXPECT_GT(fs::file_size(out / "turntable.mp4"), 0u);
   std::ifstream csv(out / "errors.csv");
   std::string line;
   int lines = 0;

@@ -13,6 +13,7 @@
 //   errors.csv                          one row per frame: means and timings
 //   sequence.mp4                        the frames/ PNGs in order (optional)
 //   turntable/view<NNN>.png             canonical mesh around its y axis (optional)
+//   turntable.mp4                       the turntable views (with the MP4 option)
 #pragma once
 
 #include <functional>
@@ -71,6 +72,7 @@ struct SequenceSummary {
   std::string video_path;     // written MP4, empty if none
   std::string video_note;     // why no MP4 was written, if asked for one
   int turntable_written = 0;
+  std::string turntable_video_path;  // turntable.mp4 (with write_video), empty if none
 };
 
 // File name stem of a frame: "video<VV>_frame<TTTTT>".
