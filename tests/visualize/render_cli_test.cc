@@ -9,6 +9,8 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "../common/run_banmo.h"
 #include "../optim/tiny_solver_scene.h"
@@ -166,11 +168,23 @@ TEST_F(RenderCli, BadFrameSelectionsAreErrors) {
     EXPECT_NE(r.out.find("--frames"), std::string::npos) << frames << ": " << r.out;
     EXPECT_FALSE(fs::exists(out)) << frames;
   }
-  const auto r = RunBanmo("render --model " + Model() + " --data " + Data() + " --out " +
-                          Path("bad_every") + " --every 0");
-  EXPECT_EQ(r.exit_code, 2) << r.out;
-  EXPECT_NE(r.out.find("--every"), std::string::npos) << r.out;
-  EXPECT_FALSE(fs::exists(Path("bad_every")));
+}
+
+TEST_F(RenderCli, BadOptionsAreErrorsNamingTheFlag) {
+  for (const auto& [args, flag] :
+       std::vector<std::pair<std::string, std::string>>{{"--every 0", "--every"},
+                                                        {"--bounds 1,2,3", "--bounds"},
+                                                        {"--bounds 0,0,0,1,x,1", "--bounds"},
+                                                        {"--scale -1", "--scale"},
+                                                        {"--importance maybe", "--importance"},
+                                                        {"--samples -2", "--samples"}}) {
+    const std::string out = Path("bad_option");
+    const auto r =
+        RunBanmo("render --model " + Model() + " --data " + Data() + " --out " + out + " " + args);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.out;
+    EXPECT_NE(r.out.find("error: " + flag), std::string::npos) << args << ": " << r.out;
+    EXPECT_FALSE(fs::exists(out)) << args;
+  }
 }
 
 TEST_F(RenderCli, HelpListsTheOptions) {
