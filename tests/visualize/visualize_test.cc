@@ -155,6 +155,35 @@ TEST(RenderFrame, EqualsTheFullJetReferenceResidualPlusObservation) {
   EXPECT_LT(object_pixels, static_cast<int>(pixels.size()));
 }
 
+TEST(RenderFrame, ChunkSizeDoesNotChangeTheResult) {
+  // Chunks are a memory bound only: one chunk, chunks of 1000 (partial last
+  // one) and of 7 rays give the same images, with and without importance
+  // resampling (seeded per pixel, not per chunk). 1e-12: batched GEMMs of
+  // different sizes may sum in another order (rounding only).
+  const Model& model = TrainedTinyModel();
+  const ObservedFrame observed = ObserveFrame(TinyQuadrupedDataset(), 0, 3, 2);
+  ASSERT_EQ(observed.partner_frame, 5);
+  cv::Mat opacity_without_importance;
+  for (const bool importance : {false, true}) {
+    FrameRenderOptions options = TinyRenderOptions(model);
+    options.importance = importance;
+    options.chunk_rays = 48 * 48;
+    const RenderedFrame whole = RenderFrame(model, observed, options);
+    if (!importance) opacity_without_importance = whole.opacity;
+    // The importance pass does move the samples.
+    if (importance) {
+      EXPECT_GT(cv::norm(whole.opacity, opacity_without_importance, cv::NORM_INF), 1e-3);
+    }
+    for (const int chunk : {1000, 7}) {
+      options.chunk_rays = chunk;
+      const RenderedFrame parts = RenderFrame(model, observed, options);
+      EXPECT_LE(cv::norm(whole.rgb, parts.rgb, cv::NORM_INF), 1e-12) << chunk << importance;
+      EXPECT_LE(cv::norm(whole.opacity, parts.opacity, cv::NORM_INF), 1e-12) << chunk << importance;
+      EXPECT_LE(cv::norm(whole.flow, parts.flow, cv::NORM_INF), 1e-12) << chunk << importance;
+    }
+  }
+}
+
 TEST(ErrorMaps, ZeroWhereRenderedEqualsObservedAndTheDifferenceElsewhere) {
   const Model& model = TrainedTinyModel();
   const ObservedFrame real = ObserveFrame(TinyQuadrupedDataset(), 0, 1, 1);
