@@ -13,7 +13,9 @@
 #   --resume        keep runs that finished (OUT/done) instead of re-running them
 #   --only a,b      run only these configuration / stability names (tables use all CSVs present)
 # Environment: BANMO_BUILD_DIR (default build/), BANMO_SOURCE_DIR (sources to
-# build, default this checkout), BANMO_BENCH_OUT (default runs/bench).
+# build, default this checkout), BANMO_BENCH_OUT (default runs/bench),
+# BANMO_BENCH_RESULTS (plots/ and results/, default this folder),
+# BANMO_BENCH_README (default benchmarks/README.md).
 set -euo pipefail
 here="$(cd -P "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd -P "$here/../.." && pwd)"
@@ -154,6 +156,7 @@ fi
 runs_seconds=$(( $(date +%s) - start ))
 echo "[summary] plots, CSV and tables"
 python3 "$here/summarize.py" --mode "$mode" --work "$work" --here "$here" \
-  --readme "$root/benchmarks/README.md" --run-seconds "$runs_seconds" \
+  --results "${BANMO_BENCH_RESULTS:-$here}" --readme "${BANMO_BENCH_README:-$root/benchmarks/README.md}" \
+  --run-seconds "$runs_seconds" \
   --command "bash benchmarks/solver/run.sh $( [[ $mode == quick ]] && echo --quick )$( [[ $fox == 1 ]] && echo ' --fox')"
 echo "[done] run.sh ($mode) in $(( $(date +%s) - start )) s"

@@ -118,7 +118,7 @@ def time_to_reach(run, target):
     return None
 
 
-def plot_axis(here, mode, axis, names, runs, tmp):
+def plot_axis(results, mode, axis, names, runs, tmp, readme_dir):
     files = []
     for name in names:
         if name not in runs:
@@ -136,7 +136,7 @@ def plot_axis(here, mode, axis, names, runs, tmp):
     def title(n):
         return n + " (base config)" if n == "adam" else n
 
-    png = os.path.join(here, "plots", f"{mode}_{axis}.png")
+    png = os.path.join(results, "plots", f"{mode}_{axis}.png")
     os.makedirs(os.path.dirname(png), exist_ok=True)
     label = "QUICK SMOKE RUN (tiny budgets, not a result)" if mode == "quick" else "full run"
     script = [
@@ -155,7 +155,7 @@ def plot_axis(here, mode, axis, names, runs, tmp):
     ]
     subprocess.run(["gnuplot"], input="\n".join(script), text=True, check=True)
     os.replace(png + ".tmp", png)
-    return os.path.relpath(png, os.path.dirname(here))
+    return os.path.relpath(png, readme_dir)
 
 
 def main():
@@ -164,6 +164,7 @@ def main():
     ap.add_argument("--work", required=True)
     ap.add_argument("--here", required=True)
     ap.add_argument("--readme", required=True)
+    ap.add_argument("--results", required=True, help="folder of plots/ and results/")
     ap.add_argument("--run-seconds", type=float, required=True)
     ap.add_argument("--command", required=True)
     a = ap.parse_args()
@@ -174,7 +175,7 @@ def main():
     axes = read_axes(os.path.join(a.here, "configs.txt"), a.mode)
 
     # Combined CSV.
-    res_dir = os.path.join(a.here, "results", a.mode)
+    res_dir = os.path.join(a.results, "results", a.mode)
     os.makedirs(res_dir, exist_ok=True)
     header = None
     lines = []
@@ -196,7 +197,8 @@ def main():
     plots = []
     with tempfile.TemporaryDirectory() as tmp:
         for axis, names in axes.items():
-            p = plot_axis(a.here, a.mode, axis, names, compare, tmp)
+            p = plot_axis(a.results, a.mode, axis, names, compare, tmp,
+                          os.path.dirname(os.path.abspath(a.readme)))
             if p:
                 plots.append((axis, p))
 
