@@ -15,7 +15,8 @@
 # Environment: BANMO_BUILD_DIR (default build/), BANMO_SOURCE_DIR (sources to
 # build, default this checkout), BANMO_BENCH_OUT (default runs/bench),
 # BANMO_BENCH_RESULTS (plots/ and results/, default this folder),
-# BANMO_BENCH_README (default benchmarks/README.md).
+# BANMO_BENCH_README (default benchmarks/README.md), BANMO_BENCH_BUDGET (full
+# mode: solve seconds per run, default 300).
 set -euo pipefail
 here="$(cd -P "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd -P "$here/../.." && pwd)"
@@ -62,7 +63,10 @@ if [[ $mode == quick ]]; then
   compare_scene=quad_q
 else
   base="$root/problems/default.yaml"
-  budget=()
+  # Every run gets the same solve-time budget (the default config's 900
+  # batches take about 280 s with Adam): slower step rules and larger models
+  # do fewer batches, which is the comparison of speed against error.
+  budget=(--max-solve-seconds "${BANMO_BENCH_BUDGET:-300}")
   schedule=(--every-seconds 30 --resolution 64 --frame-step 4 --final-resolution 128)
   compare_scene=quad
 fi
