@@ -10,7 +10,8 @@
 # prints its own run time. README.md in this folder documents everything.
 #   --quick         tiny scenes and budgets: proves the pipeline in minutes
 #   --fox           (full mode) also adam / lm / alternate on the Fox for 30 min each
-#   --resume        keep runs that finished (OUT/done) instead of re-running them
+#   --resume        keep runs that finished (OUT/done, or listed in results/<mode>/done.csv)
+#                   instead of re-running them
 #   --only a,b      run only these configuration / stability names (tables use all CSVs present)
 # Environment: BANMO_BUILD_DIR (default build/), BANMO_SOURCE_DIR (sources to
 # build, default this checkout), BANMO_BENCH_OUT (default runs/bench),
@@ -73,6 +74,13 @@ fi
 work="$out_root/$mode"
 scenes_dir="$out_root/scenes"
 mkdir -p "$work" "$scenes_dir"
+
+if [[ $resume == 1 ]]; then
+  # Runs that finished in an earlier run.sh (possibly on another machine or
+  # in another session) come back from the committed results/<mode>/ CSVs.
+  python3 "$here/summarize.py" --restore --mode "$mode" --work "$work" \
+    --results "${BANMO_BENCH_RESULTS:-$here}"
+fi
 
 selected() {  # selected NAME: is NAME in --only (or --only empty)?
   [[ -z "$only" ]] && return 0

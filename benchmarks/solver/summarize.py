@@ -52,6 +52,58 @@ def read_runs(work, group):
     return runs
 
 
+def write_done_csv(res_dir, groups):
+    """results/<mode>/done.csv: the done file of every finished run (group,
+    config, key, value), so that a later run.sh --resume can restore them."""
+    tmp = os.path.join(res_dir, "done.csv.tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["group", "config", "key", "value"])
+        for group_runs in groups:
+            for name, run in group_runs.items():
+                for k, v in (run["done"] or {}).items():
+                    w.writerow([run["group"], name, k, v])
+    os.replace(tmp, os.path.join(res_dir, "done.csv"))
+
+
+def restore(work, res_dir):
+    """Recreates work/<group>/<config>/{trace.csv,done} of every run that
+    results/<mode>/done.csv lists as finished and that work/ does not hold:
+    run.sh --resume then keeps them, so a long run can span machines or
+    sessions through the committed CSVs. Returns the restored names."""
+    traces = os.path.join(res_dir, "traces.csv")
+    dones = os.path.join(res_dir, "done.csv")
+    if not (os.path.isfile(traces) and os.path.isfile(dones)):
+        return []
+    done = {}
+    with open(dones, newline="") as f:
+        for r in csv.DictReader(f):
+            done.setdefault((r["group"], r["config"]), []).append((r["key"], r["value"]))
+    with open(traces, newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        rows = {}
+        for r in reader:
+            rows.setdefault((r[0], r[1]), []).append(r[1:])
+    restored = []
+    for (group, name), kv in sorted(done.items()):
+        out = os.path.join(work, group, name)
+        if os.path.isfile(os.path.join(out, "done")) or (group, name) not in rows:
+            continue
+        os.makedirs(out, exist_ok=True)
+        with open(os.path.join(out, "trace.csv"), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(header[1:])
+            w.writerows(rows[(group, name)])
+        with open(os.path.join(out, "done"), "w") as f:
+            for k, v in kv:
+                f.write(f"{k} {v}\n")
+        with open(os.path.join(out, "log.txt"), "w") as f:
+            f.write(f"restored from {traces}\n")
+        restored.append(f"{group}/{name}")
+    return restored
+
+
 def trace_rows(run):
     return [r for r in run["rows"] if r["kind"] == "trace"]
 
@@ -162,12 +214,22 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--mode", required=True)
     ap.add_argument("--work", required=True)
-    ap.add_argument("--here", required=True)
-    ap.add_argument("--readme", required=True)
     ap.add_argument("--results", required=True, help="folder of plots/ and results/")
-    ap.add_argument("--run-seconds", type=float, required=True)
-    ap.add_argument("--command", required=True)
+    ap.add_argument("--restore", action="store_true",
+                    help="only restore finished runs from results/<mode>/ into --work")
+    ap.add_argument("--here")
+    ap.add_argument("--readme")
+    ap.add_argument("--run-seconds", type=float)
+    ap.add_argument("--command")
     a = ap.parse_args()
+    if a.restore:
+        names = restore(a.work, os.path.join(a.results, "results", a.mode))
+        for n in names:
+            print(f"[restore] {n}: finished in an earlier run (results/{a.mode}/traces.csv)")
+        return
+    for req in ("here", "readme", "run_seconds", "command"):
+        if getattr(a, req) is None:
+            ap.error(f"--{req.replace('_', '-')} is required")
 
     compare = read_runs(a.work, "compare")
     stability = read_runs(a.work, "stability")
@@ -192,6 +254,7 @@ def main():
             w.writerow(header)
             w.writerows(lines)
         os.replace(tmp_csv, os.path.join(res_dir, "traces.csv"))
+        write_done_csv(res_dir, (compare, stability, fox))
 
     # Plots.
     plots = []

@@ -1,0 +1,103 @@
+#!/usr/bin/env python3
+"""ctest summarize_test: summarize.py writes results/<mode>/{traces,done}.csv
+and the README block, and --restore rebuilds the finished runs from them (the
+cross-session --resume of run.sh). Standard library + gnuplot only."""
+import csv
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SUMMARIZE = os.path.join(HERE, "summarize.py")
+COLUMNS = ["config", "scene", "kind", "stage", "stage_name", "iteration", "total_batches",
+           "solve_seconds", "cpu_seconds", "wall_seconds", "trace_seconds", "loss_total",
+           "loss_rgb", "loss_silhouette", "loss_flow", "loss_feature_match", "loss_cycle_2d",
+           "loss_cycle_3d", "params_finite", "losses_finite", "nonfinite_what", "resolution",
+           "mesh_vertices", "eval_frames", "chamfer_cm", "fscore_1", "fscore_2", "fscore_5"]
+
+
+def write_run(work, group, name, scene, points, done):
+    d = os.path.join(work, group, name)
+    os.makedirs(d)
+    with open(os.path.join(d, "trace.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, COLUMNS)
+        w.writeheader()
+        for i, (sec, cd) in enumerate(points):
+            row = {c: "0" for c in COLUMNS}
+            row.update(config=name, scene=scene, kind="trace", stage=str(0 if i else -1),
+                       stage_name="all" if i else "", iteration=str(10 * i),
+                       total_batches=str(10 * i), solve_seconds=str(sec), params_finite="1",
+                       losses_finite="1", nonfinite_what="", chamfer_cm=str(cd),
+                       fscore_2=str(100 - cd))
+            w.writerow(row)
+    if done:
+        with open(os.path.join(d, "done"), "w") as f:
+            f.write(f"batches {10 * (len(points) - 1)}\nsolve_seconds {points[-1][0]}\n")
+
+
+class RestoreTest(unittest.TestCase):
+    def run_summarize(self, *args):
+        subprocess.run([sys.executable, SUMMARIZE, *args], check=True,
+                       stdout=subprocess.DEVNULL)
+
+    def test_round_trip(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            work, res = os.path.join(tmp, "work"), os.path.join(tmp, "res")
+            here = os.path.join(tmp, "here")
+            os.makedirs(here)
+            with open(os.path.join(here, "configs.txt"), "w") as f:
+                f.write("all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n")
+            with open(os.path.join(here, "stability.txt"), "w") as f:
+                f.write("all noise50 quad_n\n")
+            readme = os.path.join(tmp, "README.md")
+            with open(readme, "w") as f:
+                f.write("# x\n<!-- BEGIN solver-tables -->\n<!-- END solver-tables -->\n")
+            write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20), (10, 15)], True)
+            write_run(work, "compare", "lm", "quad", [(0, 30), (8, 14)], True)
+            write_run(work, "stability", "noise50", "quad_n", [(0, 30), (4, 25)], False)
+            self.run_summarize("--mode", "full", "--work", work, "--here", here,
+                               "--results", res, "--readme", readme, "--run-seconds", "1",
+                               "--command", "test")
+            traces = os.path.join(res, "results", "full", "traces.csv")
+            with open(os.path.join(res, "results", "full", "done.csv")) as f:
+                done_rows = list(csv.DictReader(f))
+            self.assertEqual({(r["group"], r["config"]) for r in done_rows},
+                             {("compare", "adam"), ("compare", "lm")})
+
+            # Restore into an empty work dir: the finished runs only, same rows.
+            work2 = os.path.join(tmp, "work2")
+            self.run_summarize("--restore", "--mode", "full", "--work", work2, "--results", res)
+            for name in ("adam", "lm"):
+                for fname in ("trace.csv", "done"):
+                    with open(os.path.join(work, "compare", name, fname)) as a, \
+                            open(os.path.join(work2, "compare", name, fname)) as b:
+                        self.assertEqual(a.read(), b.read(), f"{name}/{fname}")
+            self.assertFalse(os.path.exists(os.path.join(work2, "stability", "noise50")),
+                             "an unfinished run must not come back as finished")
+
+            # Summarising the restored runs gives the same combined CSV (minus
+            # the unfinished run), and a second restore changes nothing.
+            with open(traces) as f:
+                before = [l for l in f if not l.startswith("stability,")]
+            res2 = os.path.join(tmp, "res2")
+            self.run_summarize("--mode", "full", "--work", work2, "--here", here,
+                               "--results", res2, "--readme", readme, "--run-seconds", "1",
+                               "--command", "test")
+            with open(os.path.join(res2, "results", "full", "traces.csv")) as f:
+                self.assertEqual(before, f.readlines())
+            out = subprocess.run([sys.executable, SUMMARIZE, "--restore", "--mode", "full",
+                                  "--work", work2, "--results", res], check=True,
+                                 capture_output=True, text=True).stdout
+            self.assertEqual(out, "")
+
+    def test_restore_without_results_is_a_no_op(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            self.run_summarize("--restore", "--mode", "full", "--work",
+                               os.path.join(tmp, "w"), "--results", os.path.join(tmp, "r"))
+            self.assertFalse(os.path.exists(os.path.join(tmp, "w")))
+
+
+if __name__ == "__main__":
+    unittest.main()
