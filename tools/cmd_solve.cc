@@ -102,7 +102,7 @@ int RunSolve(int argc, char** argv) {
     std::unique_ptr<Model> source = LoadCheckpoint(retarget_dir, &info);
     CopySharedParameters(*source, model.get(), retarget_dir);  // optim/solver.h
     options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones", "delta_skinning"};
-    scale_origin = "the retargeted model's";
+    scale_origin = "from the --retarget model";
   }
   if (!resume) {
     std::printf("banmo solve: scene scale s = %.6g (%s); model units = dataset units / s\n",
