@@ -4,6 +4,7 @@
 #include <string>
 
 #include "banmo/io/dataset.h"
+#include "banmo/optim/scene_scale.h"
 #include "banmo/util/timer.h"
 #include "command.h"
 
@@ -53,6 +54,11 @@ int RunCheck(int argc, char** argv) {
   std::string gaps;
   for (int g : dataset.flow_gaps) gaps += (gaps.empty() ? "" : ", ") + std::to_string(g);
   std::printf("flow gaps %s\n", gaps.empty() ? "none" : gaps.c_str());
+  // What `banmo solve` takes as its scene scale with model.scene_scale: auto.
+  const SceneScaleEstimate scale = EstimateSceneScale(dataset);
+  std::printf("scale     s = %.6g (estimate %.4g from %d frame(s)%s; docs/solver.md)\n",
+              scale.scale, scale.estimate, scale.frames_used,
+              scale.border_used ? ", all touching the image border" : "");
   std::printf("on disk   %s (%s per frame)\n", HumanBytes(static_cast<double>(bytes)).c_str(),
               HumanBytes(frames > 0 ? static_cast<double>(bytes) / frames : 0.0).c_str());
   for (const Video& v : dataset.videos) {

@@ -62,7 +62,9 @@ int RunExtract(int argc, char** argv) {
                  "Articulated meshes to write: all, none, or a comma-separated list of V:T, "
                  "V:T0-T1, V:* (video V, frame T)")
       ->capture_default_str();
-  app.add_option("--bounds", bounds, "Canonical box sampled: xmin,ymin,zmin,xmax,ymax,zmax")
+  app.add_option("--bounds", bounds,
+                 "Canonical box sampled, in model units (dataset units / scene scale): "
+                 "xmin,ymin,zmin,xmax,ymax,zmax")
       ->capture_default_str();
   app.add_option("--coarse-stride", options.grid.coarse_stride,
                  "Coarse-to-fine sampling stride (1 = dense; exact for SDF-like fields)")

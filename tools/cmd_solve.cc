@@ -8,6 +8,7 @@
 #include "banmo/io/dataset.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/config.h"
+#include "banmo/optim/scene_scale.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
@@ -79,7 +80,19 @@ int RunSolve(int argc, char** argv) {
   MakeDirectories(out_dir);
   WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));
 
-  std::unique_ptr<Model> model = MakeModelForDataset(dataset, config.model);
+  // The scene scale (docs/solver.md, "Scene scale"), estimated here when
+  // auto so that the estimate can be reported.
+  ModelOptions model_options = config.model;
+  std::string scale_origin = "model.scene_scale";
+  if (!model_options.scene_scale) {
+    const SceneScaleEstimate e = EstimateSceneScale(dataset);
+    model_options.scene_scale = e.scale;
+    char text[160];
+    std::snprintf(text, sizeof(text), "auto: estimate %.4g from %d frame(s)%s", e.estimate,
+                  e.frames_used, e.border_used ? ", all touching the image border" : "");
+    scale_origin = text;
+  }
+  std::unique_ptr<Model> model = MakeModelForDataset(dataset, model_options);
   SolveOptions options;
   options.out_dir = out_dir;
   options.resume = resume;
@@ -89,6 +102,11 @@ int RunSolve(int argc, char** argv) {
     std::unique_ptr<Model> source = LoadCheckpoint(retarget_dir, &info);
     CopySharedParameters(*source, model.get(), retarget_dir);  // optim/solver.h
     options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones", "delta_skinning"};
+    scale_origin = "from the --retarget model";
+  }
+  if (!resume) {
+    std::printf("banmo solve: scene scale s = %.6g (%s); model units = dataset units / s\n",
+                model->scene_scale(), scale_origin.c_str());
   }
   Solver solver(dataset, config, std::move(model));
   const SolveResult result = solver.Run(options);

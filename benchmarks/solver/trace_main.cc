@@ -162,13 +162,14 @@ int Run(int argc, char** argv) {
       for (size_t v = 0; v < dataset.videos.size(); ++v) {
         for (size_t t = 0; t < dataset.videos[v].frames.size(); ++t) {
           if (dataset.videos[v].frames[t].skip) continue;
-          pred.push_back(ArticulateMesh(model, canonical, v, t));
+          pred.push_back(MeshInDatasetUnits(model, ArticulateMesh(model, canonical, v, t)));
           gt.push_back(ReadMesh(dataset.videos[v].frames[t].gt_mesh_path));
         }
       }
     } else {
       for (const EvalFrame& f : eval_frames) {
-        pred.push_back(ArticulateMesh(model, canonical, f.video, f.frame));
+        pred.push_back(
+            MeshInDatasetUnits(model, ArticulateMesh(model, canonical, f.video, f.frame)));
         gt.push_back(f.gt);
       }
     }

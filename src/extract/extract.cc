@@ -299,6 +299,11 @@ Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& po
   return weights;
 }
 
+TriangleMesh MeshInDatasetUnits(const Model& model, TriangleMesh mesh) {
+  mesh.vertices *= model.scene_scale();
+  return mesh;
+}
+
 Eigen::Matrix<std::uint8_t, 3, 1> BonePaletteColor(int bone) {
   // Twelve well-separated colours, then golden-ratio hues.
   static const std::uint8_t kPalette[12][3] = {{230, 25, 75},  {60, 180, 75},  {0, 130, 200},
@@ -382,8 +387,9 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
   if (canonical.NumFaces() == 0) {
     const GridOptions& g = options.grid;
     ThrowInputError("extract: the SDF has no zero crossing inside the bounds [",
-                    g.bounds_min.transpose(), "] - [", g.bounds_max.transpose(), "] at resolution ",
-                    g.resolution, "; nothing written to ", out_dir);
+                    g.bounds_min.transpose(), "] - [", g.bounds_max.transpose(),
+                    "] (model units) at resolution ", g.resolution, "; nothing written to ",
+                    out_dir);
   }
   summary.canonical_vertices = canonical.NumVertices();
   summary.canonical_faces = canonical.NumFaces();
@@ -391,14 +397,16 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
   namespace fs = std::filesystem;
   MakeDirectories(out_dir);
   const fs::path out(out_dir);
-  WritePly((out / "canonical.ply").string(), canonical);
+  WritePly((out / "canonical.ply").string(), MeshInDatasetUnits(model, canonical));
 
   const int B = model.num_bones();
   if (B > 0) {
     const Eigen::MatrixXd weights = SkinningWeightsAt(model, canonical.vertices);
-    WritePly((out / "skinning.ply").string(), ColorByDominantBone(canonical, weights));
-    WritePly((out / "bones.ply").string(), BoneEllipsoids(model, options.bone_ellipsoid_sigmas,
-                                                          options.bone_ellipsoid_subdivisions));
+    WritePly((out / "skinning.ply").string(),
+             MeshInDatasetUnits(model, ColorByDominantBone(canonical, weights)));
+    WritePly((out / "bones.ply").string(),
+             MeshInDatasetUnits(model, BoneEllipsoids(model, options.bone_ellipsoid_sigmas,
+                                                      options.bone_ellipsoid_subdivisions)));
     std::vector<float> data(static_cast<size_t>(weights.size()));
     for (int i = 0; i < canonical.NumVertices(); ++i) {
       for (int b = 0; b < B; ++b)
@@ -424,7 +432,8 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
     for (const auto& [v, t] : frames) {
       char name[64];
       std::snprintf(name, sizeof(name), "video%0*d_frame%0*d.ply", vw, v, tw, t);
-      WritePly((frame_dir / name).string(), ArticulateMesh(model, canonical, v, t));
+      WritePly((frame_dir / name).string(),
+               MeshInDatasetUnits(model, ArticulateMesh(model, canonical, v, t)));
       written.insert(name);
       ++summary.frames_written;
       if (progress) progress(summary.frames_written, num_frames);
@@ -446,16 +455,18 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
   summary.articulate_seconds = timer.Seconds();
 
   const GridShape shape = ComputeGridShape(options.grid);
+  // The sampled box in the files' (dataset) units.
+  const double s = model.scene_scale();
+  const Eigen::Vector3d lo = s * options.grid.bounds_min, hi = s * options.grid.bounds_max;
   std::ostringstream json;
   json.precision(17);
   json << "{\n"
        << "  \"resolution\": " << options.grid.resolution << ",\n"
        << "  \"cells\": [" << shape.cells.x() << ", " << shape.cells.y() << ", " << shape.cells.z()
        << "],\n"
-       << "  \"bounds_min\": [" << options.grid.bounds_min.x() << ", "
-       << options.grid.bounds_min.y() << ", " << options.grid.bounds_min.z() << "],\n"
-       << "  \"bounds_max\": [" << options.grid.bounds_max.x() << ", "
-       << options.grid.bounds_max.y() << ", " << options.grid.bounds_max.z() << "],\n"
+       << "  \"bounds_min\": [" << lo.x() << ", " << lo.y() << ", " << lo.z() << "],\n"
+       << "  \"bounds_max\": [" << hi.x() << ", " << hi.y() << ", " << hi.z() << "],\n"
+       << "  \"scene_scale\": " << s << ",\n"
        << "  \"iso_level\": " << options.grid.iso_level << ",\n"
        << "  \"close_at_bounds\": " << (options.grid.close_at_bounds ? "true" : "false") << ",\n"
        << "  \"keep_largest_component\": " << (options.keep_largest_component ? "true" : "false")

@@ -148,6 +148,13 @@ Eigen::Vector4d GltfQuaternion(const Eigen::Matrix3d& rotation, const Eigen::Vec
   return xyzw;
 }
 
+// x with its translation in dataset units (rotations do not change): the
+// model's lengths times its scene scale s.
+Eigen::Isometry3d InDatasetUnits(Eigen::Isometry3d x, double s) {
+  x.translation() *= s;
+  return x;
+}
+
 void SetTrs(const Eigen::Isometry3d& t, tinygltf::Node* node) {
   const Eigen::Vector4d q = GltfQuaternion(t.linear(), nullptr);
   node->rotation = {q[0], q[1], q[2], q[3]};
@@ -232,6 +239,7 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
   summary.faces = F;
   summary.joints = B;
   const Eigen::Matrix3d& A = OpenCvToGltf();
+  const double s = model.scene_scale();  // the file is in dataset units
 
   *out = tinygltf::Model();
   tinygltf::Model& m = *out;
@@ -239,11 +247,11 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
   m.asset.generator = "banmo-ceres banmo export";
   BufferWriter writer(&m);
 
-  // Mesh: positions and normals in the scene's world frame (A X*).
+  // Mesh: positions and normals in the scene's world frame (A s X*).
   std::vector<float> positions(3 * static_cast<size_t>(V)), normals(positions.size());
   const Eigen::Matrix3Xd n_canonical = VertexNormals(canonical);
   for (int i = 0; i < V; ++i) {
-    const Eigen::Vector3d x = A * canonical.vertices.col(i);
+    const Eigen::Vector3d x = A * (s * canonical.vertices.col(i));
     const Eigen::Vector3d n = (A * n_canonical.col(i)).normalized();
     for (int c = 0; c < 3; ++c) {
       positions[3 * i + c] = static_cast<float>(x[c]);
@@ -329,7 +337,7 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
   m.nodes[mesh_node].mesh = 0;
   std::vector<Eigen::Isometry3d> rest(B);
   for (int b = 0; b < B; ++b) {
-    rest[b] = RestBoneFrame(model.bones() + kBoneSize * b);
+    rest[b] = InDatasetUnits(RestBoneFrame(model.bones() + kBoneSize * b), s);
     tinygltf::Node& node = m.nodes[first_bone + b];
     node.name = "bone_" + std::to_string(b);
     SetTrs(rest[b], &node);
@@ -421,10 +429,14 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
         anim.channels.push_back(channel);
       }
     };
-    add_node(root_node, [&](int t) { return IsometryFromPose(model.RootPose(v, t).data()); });
+    add_node(root_node, [&](int t) {
+      return InDatasetUnits(IsometryFromPose(model.RootPose(v, t).data()), s);
+    });
     for (int b = 0; b < B; ++b) {
       add_node(first_bone + b, [&, b](int t) {
-        return IsometryFromPose(model.frame(v, t).bones_t.data() + kPoseSize * b) * rest[b];
+        return InDatasetUnits(IsometryFromPose(model.frame(v, t).bones_t.data() + kPoseSize * b),
+                              s) *
+               rest[b];
       });
     }
     m.animations.push_back(anim);

@@ -15,6 +15,9 @@ void ModelOptions::Check() const {
   }
   if (!(init_bone_scale > 0)) ThrowInputError("model.init_bone_scale: expected > 0");
   if (!(init_beta > 0)) ThrowInputError("model.init_beta: expected > 0");
+  if (scene_scale && !(*scene_scale > 0 && std::isfinite(*scene_scale))) {
+    ThrowInputError("model.scene_scale: expected auto or a finite number > 0, got ", *scene_scale);
+  }
   if (delta_skinning.enabled) {
     delta_skinning.Check();
     if (num_bones < 1) {
@@ -33,6 +36,7 @@ Model::Model(const ModelOptions& options, const std::vector<int>& frames_per_vid
   embedding_.resize(field_->EmbeddingParameterSize());
   field_->InitializeParameters(options.seed, sdf_.data(), color_.data(), embedding_.data());
   log_beta_ = std::log(options.init_beta);
+  scene_scale_ = options.scene_scale.value_or(1.0);
 
   // Bones on a Fibonacci sphere of half the initial SDF radius.
   const int B = options.num_bones;
@@ -78,6 +82,11 @@ Model::Model(const ModelOptions& options, const std::vector<int>& frames_per_vid
       if (delta_) random_code(&f.pose_code);
     }
   }
+}
+
+void Model::set_scene_scale(double s) {
+  CHECK(s > 0 && std::isfinite(s)) << "scene scale " << s;
+  scene_scale_ = s;
 }
 
 bool Model::DeltaSkinningIsNonZero() const {

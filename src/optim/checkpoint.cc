@@ -2,7 +2,10 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +20,16 @@ namespace {
 // params.bin: "BANMOPB1", uint64 count, count little-endian doubles in
 // Model::ForEachBlock order.
 constexpr char kMagic[8] = {'B', 'A', 'N', 'M', 'O', 'P', 'B', '1'};
+
+// Shortest decimal that reads back to the same double.
+std::string FormatDouble(double v) {
+  char buf[64];
+  for (int precision = 15; precision <= 17; ++precision) {
+    std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
+    if (std::strtod(buf, nullptr) == v) break;
+  }
+  return buf;
+}
 
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -58,6 +71,7 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
   out << YAML::Key << "stage" << YAML::Value << info.stage;
   out << YAML::Key << "iteration" << YAML::Value << info.iteration;
   out << YAML::Key << "parameters" << YAML::Value << count;
+  out << YAML::Key << "scene_scale" << YAML::Value << FormatDouble(model.scene_scale());
   out << YAML::Key << "videos" << YAML::Value << YAML::BeginSeq;
   for (int v = 0; v < model.num_videos(); ++v) {
     const VideoParameters& vp = model.video(v);
@@ -109,6 +123,7 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
   std::vector<int> frames;
   std::vector<PinholeCamera> cameras;
   uint64_t expected = 0;
+  double scene_scale = 1.0;  // checkpoints written before the key existed
   try {
     if (root["format"].as<std::string>() != "banmo-checkpoint-1") {
       ThrowInputError(yaml_path, ": unknown checkpoint format '", root["format"].as<std::string>(),
@@ -118,6 +133,7 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
     ci.iteration = root["iteration"].as<int>();
     ci.config = root["config"].as<std::string>();
     expected = root["parameters"].as<uint64_t>();
+    if (root["scene_scale"]) scene_scale = root["scene_scale"].as<double>();
     for (const YAML::Node& v : root["videos"]) {
       frames.push_back(v["frames"].as<int>());
       PinholeCamera cam;
@@ -129,8 +145,13 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
   } catch (const YAML::Exception& e) {
     ThrowInputError(yaml_path, ": missing or malformed key: ", e.what());
   }
+  if (!(scene_scale > 0 && std::isfinite(scene_scale))) {
+    ThrowInputError(yaml_path, ": key 'scene_scale': expected a finite number > 0, got ",
+                    scene_scale);
+  }
   const SolverConfig config = ParseSolverConfig(ci.config, yaml_path + " (config)");
   auto model = std::make_unique<Model>(config.model, frames, cameras);
+  model->set_scene_scale(scene_scale);
 
   const std::string params_path = dir + "/params.bin";
   const std::string params = ReadFile(params_path);

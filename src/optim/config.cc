@@ -14,6 +14,7 @@
 #include <limits>
 #include <locale>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -71,6 +72,7 @@ void VisitFields(V& v, ModelOptions& o) {
   v("init_beta", o.init_beta);
   v("seed", o.seed);
   v("delta_skinning", o.delta_skinning);
+  v("scene_scale", o.scene_scale);
 }
 
 template <class V>
@@ -213,17 +215,32 @@ void ReadValue(const std::string& source, const std::string& path, const YAML::N
       source, path, node, 0, std::numeric_limits<uint32_t>::max(), "an integer in 0..4294967295"));
 }
 
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               double* value) {
-  const char* expected = "a finite number";
-  if (!node.IsScalar()) TypeError(source, path, node, expected);
+// A scalar holding a finite number (classic locale); false on anything else.
+bool ParseFiniteNumber(const YAML::Node& node, double* value) {
+  if (!node.IsScalar()) return false;
   std::istringstream in(node.Scalar());
   in.imbue(std::locale::classic());
   double v = 0.0;
   in >> v;
-  if (in.fail() || !(in >> std::ws).eof() || !std::isfinite(v)) {
-    TypeError(source, path, node, expected);
+  if (in.fail() || !(in >> std::ws).eof() || !std::isfinite(v)) return false;
+  *value = v;
+  return true;
+}
+
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               double* value) {
+  if (!ParseFiniteNumber(node, value)) TypeError(source, path, node, "a finite number");
+}
+
+// `auto` (empty) or a number; the checker requires the number to be > 0.
+void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
+               std::optional<double>* value) {
+  if (node.IsScalar() && node.Scalar() == "auto") {
+    value->reset();
+    return;
   }
+  double v = 0.0;
+  if (!ParseFiniteNumber(node, &v)) TypeError(source, path, node, "auto or a finite number > 0");
   *value = v;
 }
 
@@ -308,6 +325,9 @@ class FieldReader {
     ReadValue(source_, path, node, v);
   }
   void Read(const std::string& path, const YAML::Node& node, double* v) {
+    ReadValue(source_, path, node, v);
+  }
+  void Read(const std::string& path, const YAML::Node& node, std::optional<double>* v) {
     ReadValue(source_, path, node, v);
   }
   void Read(const std::string& path, const YAML::Node& node, bool* v) {
@@ -445,6 +465,13 @@ class FieldWriter {
   void Write(int v) { out_ << v; }
   void Write(uint32_t v) { out_ << v; }
   void Write(double v) { out_ << FormatDouble(v); }
+  void Write(std::optional<double>& v) {
+    if (v) {
+      Write(*v);
+    } else {
+      out_ << "auto";
+    }
+  }
   void Write(bool v) { out_ << (v ? "true" : "false"); }
   void Write(std::string& v) {
     // Strings YAML would read as null are quoted; the reader accepts any
@@ -731,6 +758,9 @@ void CheckSolverConfig(const SolverConfig& config, const std::string& source) {
   }
   c.Positive("model.init_bone_scale", m.init_bone_scale);
   c.Positive("model.init_beta", m.init_beta);
+  if (m.scene_scale && !(*m.scene_scale > 0 && std::isfinite(*m.scene_scale))) {
+    c.Fail("model.scene_scale", "expected auto or a finite number > 0, got ", *m.scene_scale);
+  }
   try {
     m.Check();  // the model's own constraints (names the key)
   } catch (const InputError& e) {

@@ -19,6 +19,7 @@
 #include "banmo/losses/regularizers.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/ray_sampler.h"
+#include "banmo/optim/scene_scale.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
@@ -156,9 +157,14 @@ std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOp
     cameras.push_back(v.camera);
   }
   auto model = std::make_unique<Model>(options, frames, cameras);
+  // Model units = dataset units / s (optim/scene_scale.h).
+  const double s = ResolveSceneScale(dataset, options);
+  model->set_scene_scale(s);
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
     for (size_t t = 0; t < dataset.videos[v].frames.size(); ++t) {
-      model->frame(v, t).root_init = dataset.videos[v].frames[t].root_pose_init;
+      Pose& root_init = model->frame(v, t).root_init;
+      root_init = dataset.videos[v].frames[t].root_pose_init;
+      for (int k = 0; k < 3; ++k) root_init[kPoseT + k] /= s;
     }
   }
   return model;
@@ -184,6 +190,18 @@ void CopySharedParameters(const Model& from, Model* to, const std::string& sourc
             to->delta_skinning_params());
   std::copy(from.rest_pose_code(), from.rest_pose_code() + from.pose_code_size(),
             to->rest_pose_code());
+  // The shared shape is in `from`'s model units: `to` takes its scene scale,
+  // its root translations re-expressed (exact for equal scales).
+  const double ratio = to->scene_scale() / from.scene_scale();
+  for (int v = 0; v < to->num_videos(); ++v) {
+    for (FrameParameters& f : to->video(v).frames) {
+      for (int k = 0; k < 3; ++k) {
+        f.root_init[kPoseT + k] *= ratio;
+        f.root_delta[kPoseT + k] *= ratio;
+      }
+    }
+  }
+  to->set_scene_scale(from.scene_scale());
 }
 
 // Everything a resumed run needs beyond the model's parameters.

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/io/npy.h"
@@ -361,6 +362,36 @@ TEST(WriteExtraction, WritesAllFilesReadableByTheReaders) {
   EXPECT_FALSE(fs::exists(dir + "/frames/video00_frame00000.ply"));
   EXPECT_FALSE(fs::exists(dir + "/bones.ply"));
   EXPECT_FALSE(fs::exists(dir + "/skinning_weights.npy"));
+  fs::remove_all(dir);
+}
+
+// The files are in dataset units: the model's meshes times its scene scale
+// (exact: PLY stores doubles and the scale is a power of two here), and
+// extract.json gives the scale and the bounds in dataset units.
+TEST(WriteExtraction, FilesAreInDatasetUnits) {
+  auto model = SphereModel(3);
+  model->set_scene_scale(0.25);
+  model->frame(1, 1).root_init[kPoseT + 2] = 3.0;
+  model->bones()[kBoneCenter] = 0.1;
+  const std::string dir = TempDir("units");
+  ExtractOptions options = Quick(16);
+  WriteExtraction(*model, options, dir);
+  const TriangleMesh canonical = ExtractCanonicalMesh(*model, options);
+  EXPECT_EQ(ReadMesh(dir + "/canonical.ply").vertices, 0.25 * canonical.vertices);
+  EXPECT_EQ(ReadMesh(dir + "/skinning.ply").vertices, 0.25 * canonical.vertices);
+  EXPECT_EQ(ReadMesh(dir + "/bones.ply").vertices,
+            0.25 * BoneEllipsoids(*model, options.bone_ellipsoid_sigmas,
+                                  options.bone_ellipsoid_subdivisions)
+                       .vertices);
+  EXPECT_EQ(ReadMesh(dir + "/frames/video01_frame00001.ply").vertices,
+            0.25 * ArticulateMesh(*model, canonical, 1, 1).vertices);
+  EXPECT_EQ(MeshInDatasetUnits(*model, canonical).vertices, 0.25 * canonical.vertices);
+  std::ifstream in(dir + "/extract.json");
+  std::stringstream json;
+  json << in.rdbuf();
+  EXPECT_NE(json.str().find("\"scene_scale\": 0.25,"), std::string::npos) << json.str();
+  EXPECT_NE(json.str().find("\"bounds_min\": [-0.25, -0.25, -0.25]"), std::string::npos)
+      << json.str();
   fs::remove_all(dir);
 }
 

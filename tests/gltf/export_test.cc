@@ -254,6 +254,35 @@ TEST_F(GltfExport, RigidModelHasRootAnimationOnly) {
             kFloatTolerance);
 }
 
+// The file is in dataset units: with scene scale s every posed frame and
+// the bind pose are s times the model's (ArticulateMesh, model units), for
+// a skinned and a rigid model and for a tiny and a huge s.
+TEST_F(GltfExport, FileIsInDatasetUnits) {
+  for (const int bones : {3, 0}) {
+    for (const double s : {1.0 / 128, 100.0}) {
+      SCOPED_TRACE("bones " + std::to_string(bones) + ", s " + std::to_string(s));
+      const auto model = MakeExportTestModel(bones, 17);
+      model->set_scene_scale(s);
+      const fs::path path = dir_ / "scaled.glb";
+      ExportGltf(*model, options_, path.string());
+      const TriangleMesh canonical = ExtractCanonicalMesh(*model, options_.extract);
+      tinygltf::Model gltf;
+      ReadGltf(path.string(), &gltf);
+      // Divided by s, the float32 file carries the same relative rounding as
+      // at s = 1 (kFloatTolerance).
+      const Eigen::Matrix3Xd rest = GltfToOpenCv(SpecPosedPositions(gltf, -1, 0)) / s;
+      EXPECT_LT(MaxVertexError(rest, canonical.vertices), kFloatTolerance);
+      for (int t = 0; t < 4; ++t) {
+        const Eigen::Matrix3Xd posed =
+            GltfToOpenCv(SpecPosedPositions(gltf, 1, testing::KeyTime(t, options_.fps))) / s;
+        EXPECT_LT(MaxVertexError(posed, ArticulateMesh(*model, canonical, 1, t).vertices),
+                  kFloatTolerance)
+            << t;
+      }
+    }
+  }
+}
+
 // LINEAR equals the model at keys and interpolates between them; STEP holds
 // the previous key. Also: .gltf output with an embedded buffer, custom names.
 TEST_F(GltfExport, InterpolationGltfTextAndNames) {

@@ -220,6 +220,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"model.num_bones", [](SolverConfig* c) { c->model.num_bones = -1; }},
       {"model.init_bone_scale", [](SolverConfig* c) { c->model.init_bone_scale = 0; }},
       {"model.init_beta", [](SolverConfig* c) { c->model.init_beta = -1; }},
+      {"model.scene_scale", [](SolverConfig* c) { c->model.scene_scale = 0.0; }},
+      {"model.scene_scale", [](SolverConfig* c) { c->model.scene_scale = -2.5; }},
       {"model.field.sdf_width", [](SolverConfig* c) { c->model.field.sdf_width = 0; }},
       {"model.field.sdf_layers", [](SolverConfig* c) { c->model.field.sdf_layers = 0; }},
       {"model.field.position_encoding.num_bands",
@@ -440,6 +442,7 @@ SolverConfig EveryFieldChanged() {
   m.delta_skinning.num_bands = 5;
   m.delta_skinning.pose_code_dim = 12;
   m.delta_skinning.code_init_std = 0.07;
+  m.scene_scale = 0.1 / 3.0;
   c.seed = 123456789u;
   c.threads = 3;
   for (int i = 0; i < 2; ++i) {
@@ -520,6 +523,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
   EXPECT_EQ(a.model.delta_skinning.num_bands, b.model.delta_skinning.num_bands);
   EXPECT_EQ(a.model.delta_skinning.pose_code_dim, b.model.delta_skinning.pose_code_dim);
   EXPECT_EQ(a.model.delta_skinning.code_init_std, b.model.delta_skinning.code_init_std);
+  EXPECT_EQ(a.model.scene_scale, b.model.scene_scale);
   EXPECT_EQ(a.seed, b.seed);
   EXPECT_EQ(a.threads, b.threads);
   ASSERT_EQ(a.stages.size(), b.stages.size());
@@ -634,6 +638,38 @@ TEST(SolverConfig, ResolvedYamlIsReadable) {
   EXPECT_NE(yaml.find("flow_gaps: [1, 2]"), std::string::npos) << yaml;
   EXPECT_NE(yaml.find("activation: softplus"), std::string::npos) << yaml;
   EXPECT_NE(yaml.find("include_input: true"), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("scene_scale: auto\n"), std::string::npos) << yaml;
+}
+
+// model.scene_scale: the word auto (the default, empty optional) or a
+// finite number > 0; anything else names the key.
+TEST(SolverConfig, SceneScaleIsAutoOrAPositiveNumber) {
+  EXPECT_FALSE(ParseSolverConfig(kMinimal, "test.yaml").model.scene_scale.has_value());
+  EXPECT_FALSE(ParseSolverConfig("model: {scene_scale: auto}\nstages: [{}]\n", "test.yaml")
+                   .model.scene_scale.has_value());
+  const SolverConfig fixed =
+      ParseSolverConfig("model: {scene_scale: 0.01}\nstages: [{}]\n", "test.yaml");
+  ASSERT_TRUE(fixed.model.scene_scale.has_value());
+  EXPECT_EQ(*fixed.model.scene_scale, 0.01);
+  EXPECT_NE(SolverConfigToYaml(fixed).find("scene_scale: 0.01\n"), std::string::npos);
+  EXPECT_EQ(*ParseSolverConfig("model: {scene_scale: 1e3}\nstages: [{}]\n", "test.yaml")
+                 .model.scene_scale,
+            1000.0);
+
+  // Not a number (and not auto): a type error naming the key and its line.
+  for (const char* value : {"big", "Auto", "[1]", ".inf", ""}) {
+    const std::string message =
+        ParseError("stages: [{}]\nmodel:\n  scene_scale: " + std::string(value) + "\n");
+    EXPECT_EQ(message.rfind("test.yaml: key 'model.scene_scale' (line ", 0), 0u)
+        << value << ": " << message;
+    EXPECT_NE(message.find("): expected auto or a finite number > 0, got "), std::string::npos)
+        << value << ": " << message;
+  }
+  // A number <= 0: the constraint, with the line.
+  EXPECT_EQ(ParseError("stages: [{}]\nmodel:\n  scene_scale: -1\n"),
+            "test.yaml: model.scene_scale: expected auto or a finite number > 0, got -1 (line 3)");
+  EXPECT_EQ(ParseError("stages: [{}]\nmodel:\n  scene_scale: 0\n"),
+            "test.yaml: model.scene_scale: expected auto or a finite number > 0, got 0 (line 3)");
 }
 
 // docs/config.md: its YAML examples parse, and every key of the resolved

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "banmo/optim/config.h"
@@ -14,10 +15,12 @@
 
 namespace banmo::testing {
 
-// The dataset for `seed`, rendered once per test program.
-inline const Dataset& TinyQuadrupedDataset(uint64_t seed = 1) {
-  static std::map<uint64_t, synth::SynthScene> scenes;
-  auto it = scenes.find(seed);
+// The scene (dataset and ground-truth meshes) for `seed`, every length times
+// `object_scale` (SynthOptions::object_scale), rendered once per test program.
+inline const synth::SynthScene& TinyQuadrupedScene(uint64_t seed = 1, double object_scale = 1.0) {
+  static std::map<std::pair<uint64_t, double>, synth::SynthScene> scenes;
+  const std::pair<uint64_t, double> key(seed, object_scale);
+  auto it = scenes.find(key);
   if (it == scenes.end()) {
     synth::SynthOptions o;
     o.num_videos = 2;
@@ -25,9 +28,15 @@ inline const Dataset& TinyQuadrupedDataset(uint64_t seed = 1) {
     o.image_size = 48;
     o.flow_gaps = {1, 2};
     o.seed = seed;
-    it = scenes.emplace(seed, synth::RenderSyntheticScene(synth::LoadRig("quadruped"), o)).first;
+    o.object_scale = object_scale;
+    it = scenes.emplace(key, synth::RenderSyntheticScene(synth::LoadRig("quadruped"), o)).first;
   }
-  return it->second.dataset;
+  return it->second;
+}
+
+// The dataset for `seed`, rendered once per test program.
+inline const Dataset& TinyQuadrupedDataset(uint64_t seed = 1) {
+  return TinyQuadrupedScene(seed).dataset;
 }
 
 // One stage of `iterations` batches of 96 rays x 16 samples with the given

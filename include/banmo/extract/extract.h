@@ -8,6 +8,10 @@
 //   x_in_camera = G^t * ForwardWarp(J^t, X*),  G^t = model.RootPose(v, t)
 // (camera_from_root, OpenCV axes), which is what `banmo eval` expects.
 //
+// Units: the functions below work in the model's units (model.h: dataset
+// units / model.scene_scale()), as do ExtractOptions::grid's bounds; the
+// files WriteExtraction writes are in dataset units (MeshInDatasetUnits).
+//
 // Files written by WriteExtraction into OUT (docs/extract.md):
 //   canonical.ply              canonical mesh with vertex colours
 //   frames/video<VV>_frame<TTTTT>.ply
@@ -19,7 +23,8 @@
 //   skinning.ply               canonical mesh coloured by dominant bone (B > 0)
 //   skinning_weights.npy       float32 array (V, B): row i = skinning weights
 //                              of vertex i of canonical.ply (B > 0)
-//   extract.json               options, counts and timings
+//   extract.json               options, counts and timings (bounds in dataset
+//                              units, scene_scale)
 #pragma once
 
 #include <Eigen/Core>
@@ -108,6 +113,10 @@ TriangleMesh ArticulateMesh(const Model& model, const TriangleMesh& canonical, i
 // they do not depend on the frame). Empty (0 x V) if B = 0.
 Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& points);
 
+// `mesh` (canonical or posed, model units) in dataset units: vertices
+// times model.scene_scale().
+TriangleMesh MeshInDatasetUnits(const Model& model, TriangleMesh mesh);
+
 // Colour of bone b in the fixed palette used by the inspection files.
 Eigen::Matrix<std::uint8_t, 3, 1> BonePaletteColor(int bone);
 
@@ -128,8 +137,9 @@ struct ExtractionSummary {
 };
 
 // Writes the files listed at the top of this header into out_dir (created if
-// missing). Every file is written atomically; the function throws InputError
-// (nothing written) if the level set is empty in the bounds.
+// missing), meshes in dataset units. Every file is written atomically; the
+// function throws InputError (nothing written) if the level set is empty in
+// the bounds.
 // progress (optional) is called after the canonical mesh (done = 0) and
 // after each articulated frame with (frames done, frames selected).
 ExtractionSummary WriteExtraction(

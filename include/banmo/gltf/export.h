@@ -40,6 +40,13 @@
 // geometry/se3.h), sign-aligned with the previous key so LINEAR slerp takes
 // the short way.
 //
+// Units: the file is in the dataset's units. The model works in model units
+// (model/model.h: dataset units / s, s = model.scene_scale()), so positions,
+// the bones' rest centres and every animated translation are multiplied by
+// s (a uniform scale of the scene: rotations and skinning weights do not
+// change); the canonical mesh given to BuildGltf is in model units, as
+// ExtractCanonicalMesh returns it.
+//
 // Limitation: with a delta-skinning MLP (frame-dependent weights) the warp is
 // not linear blend skinning with fixed weights and glTF cannot represent it;
 // the export uses the rest weights (SkinningWeightsAt) only.

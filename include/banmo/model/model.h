@@ -16,11 +16,20 @@
 //     intrinsics (4)          [fx, fy, cx, cy] of the video's camera (held
 //                             constant unless a stage frees them)
 //   G0^t (root_init) is data, not a parameter.
+//
+// Units: the model works in normalised units, dataset units divided by the
+// scene scale s (scene_scale(); docs/solver.md, "Scene scale"), so that the
+// canonical object is roughly unit-sized whatever the units of the data.
+// Root translations (root_init, root_delta), canonical points, bones and
+// every canonical-space length are in these units; projections do not
+// depend on s (x_in_camera / s projects to the same pixel). Outputs
+// (meshes, bones, glTF) are multiplied back by s.
 #pragma once
 
 #include <Eigen/Core>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,14 +48,17 @@ struct ModelOptions {
   double init_beta = 0.05;              // VolSDF beta at initialisation (canonical units)
   uint32_t seed = 0;                    // MLP initialisation seed
   DeltaSkinningOptions delta_skinning;  // optional MLP_Delta (needs num_bones >= 1)
+  // Scene scale s, dataset units per model unit (finite, > 0). Empty = auto:
+  // estimated from the data by MakeModelForDataset (optim/scene_scale.h).
+  std::optional<double> scene_scale;
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;
 };
 
 struct FrameParameters {
-  Pose root_delta = PoseIdentity();  // dG^t
-  Pose root_init = PoseIdentity();   // G0^t (data)
+  Pose root_delta = PoseIdentity();  // dG^t (translation in model units)
+  Pose root_init = PoseIdentity();   // G0^t (data; translation in model units)
   std::vector<double> bones_t;       // kPoseSize * B
   std::vector<double> pose_code;     // omega^t (P; empty without delta skinning)
 };
@@ -61,7 +73,8 @@ struct VideoParameters {
 class Model {
  public:
   // frames_per_video[v] frames in video v. Bones start on a small sphere
-  // inside the initial SDF sphere; bone transforms at the identity.
+  // inside the initial SDF sphere; bone transforms at the identity. The
+  // scene scale is options.scene_scale, or 1 when that is auto.
   Model(const ModelOptions& options, const std::vector<int>& frames_per_video,
         const std::vector<PinholeCamera>& cameras);
 
@@ -69,6 +82,11 @@ class Model {
   const CanonicalField& field() const { return *field_; }
   int num_bones() const { return options_.num_bones; }
   int num_videos() const { return static_cast<int>(videos_.size()); }
+  // Scene scale s: a length of the model times s is in dataset units.
+  double scene_scale() const { return scene_scale_; }
+  // Sets s (finite, > 0). Converts nothing: set it before the root poses are
+  // filled in (MakeModelForDataset) or when loading a checkpoint.
+  void set_scene_scale(double s);
 
   double* sdf() { return sdf_.data(); }
   double* color() { return color_.data(); }
@@ -120,6 +138,7 @@ class Model {
   std::vector<double> sdf_, color_, embedding_, bones_;
   std::vector<double> delta_params_, rest_pose_code_;
   double log_beta_ = 0.0;
+  double scene_scale_ = 1.0;
   std::vector<VideoParameters> videos_;
 };
 

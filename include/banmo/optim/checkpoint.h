@@ -5,8 +5,10 @@
 //
 // Layout of a checkpoint folder DIR:
 //   DIR/model.yaml     resolved solver config (model options inside), frames per
-//                      video, cameras, stage and iteration
-//   DIR/params.bin     all parameter blocks, little-endian doubles (see .cc)
+//                      video, cameras, stage and iteration, scene_scale (the
+//                      model's s; a checkpoint without the key loads with 1)
+//   DIR/params.bin     all parameter blocks, little-endian doubles (see .cc), in
+//                      model units (root translations = dataset units / s)
 //   DIR/state.bin      optional solver state (opaque bytes owned by optim/)
 #pragma once
 
@@ -19,9 +21,9 @@
 namespace banmo {
 
 struct CheckpointInfo {
-  int stage = 0;        // index of the stage in progress
-  int iteration = 0;    // batches done in that stage
-  std::string config;   // the resolved solver config (YAML text)
+  int stage = 0;       // index of the stage in progress
+  int iteration = 0;   // batches done in that stage
+  std::string config;  // the resolved solver config (YAML text)
 };
 
 // Writes the model (and optional solver state bytes) to DIR atomically.

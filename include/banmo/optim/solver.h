@@ -34,13 +34,16 @@
 
 namespace banmo {
 
-// A model for `dataset`: cameras and frame counts from the data, G0^t from
-// the dataset's rough root poses, MLPs and bones initialised from options.
+// A model for `dataset`: cameras and frame counts from the data, the scene
+// scale s from options.scene_scale or estimated from the data
+// (optim/scene_scale.h), G0^t from the dataset's rough root poses with their
+// translations divided by s, MLPs and bones initialised from options.
 std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options);
 
 // Motion retargeting (paper Sec. 4.4): copies the shared parameters (canonical
-// fields, beta, rest bones) of `from` into `to`. Throws InputError naming
-// `source` if the two models' sizes differ.
+// fields, beta, rest bones) of `from` into `to`; `to` takes `from`'s scene
+// scale (its root translations are re-expressed in `from`'s model units).
+// Throws InputError naming `source` if the two models' sizes differ.
 void CopySharedParameters(const Model& from, Model* to, const std::string& source);
 
 // Replaces half of `samples` (the odd-indexed ones after sorting) by depths

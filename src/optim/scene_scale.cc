@@ -1,0 +1,69 @@
+#include "banmo/optim/scene_scale.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace banmo {
+namespace {
+
+// p-th percentile (p in [0, 1]) of a non-empty sample, linear interpolation
+// between order statistics (numpy.percentile's default).
+double Percentile(std::vector<double> values, double p) {
+  std::sort(values.begin(), values.end());
+  const double rank = p * static_cast<double>(values.size() - 1);
+  const size_t lo = static_cast<size_t>(std::floor(rank));
+  const size_t hi = std::min(lo + 1, values.size() - 1);
+  return values[lo] + (rank - static_cast<double>(lo)) * (values[hi] - values[lo]);
+}
+
+}  // namespace
+
+SceneScaleEstimate EstimateSceneScale(const Dataset& dataset) {
+  std::vector<double> inside, border;
+  for (const Video& video : dataset.videos) {
+    const Eigen::Vector4d& k = video.camera.intrinsics;
+    for (const Frame& frame : video.frames) {
+      const double z = frame.root_pose_init[kPoseT + 2];
+      if (frame.skip || frame.mask.empty() || !(z > 0) || !std::isfinite(z)) continue;
+      int x0 = frame.mask.cols, y0 = frame.mask.rows, x1 = -1, y1 = -1;
+      for (int y = 0; y < frame.mask.rows; ++y) {
+        const unsigned char* row = frame.mask.ptr<unsigned char>(y);
+        for (int x = 0; x < frame.mask.cols; ++x) {
+          if (row[x] != kMaskObject) continue;
+          x0 = std::min(x0, x);
+          x1 = std::max(x1, x);
+          y0 = std::min(y0, y);
+          y1 = std::max(y1, y);
+        }
+      }
+      if (x1 < 0) continue;  // no object pixel
+      const double w = (x1 - x0 + 1) / k[0], h = (y1 - y0 + 1) / k[1];
+      const double size = 0.5 * z * std::sqrt(w * w + h * h);
+      if (!std::isfinite(size)) continue;
+      const bool touches =
+          x0 == 0 || y0 == 0 || x1 == frame.mask.cols - 1 || y1 == frame.mask.rows - 1;
+      (touches ? border : inside).push_back(size);
+    }
+  }
+  SceneScaleEstimate out;
+  out.frames_border = static_cast<int>(border.size());
+  if (inside.empty()) {
+    out.border_used = !border.empty();
+    inside.swap(border);
+  }
+  out.frames_used = static_cast<int>(inside.size());
+  if (inside.empty()) return out;  // nothing to measure: s = 1
+  out.estimate = Percentile(inside, 0.9);
+  if (out.estimate > 0 && std::isfinite(out.estimate)) {
+    const long exponent = std::clamp(std::lround(std::log2(out.estimate)), -1000L, 1000L);
+    out.scale = std::ldexp(1.0, static_cast<int>(exponent));
+  }
+  return out;
+}
+
+double ResolveSceneScale(const Dataset& dataset, const ModelOptions& options) {
+  return options.scene_scale ? *options.scene_scale : EstimateSceneScale(dataset).scale;
+}
+
+}  // namespace banmo
