@@ -449,8 +449,10 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
           it % stage.schedule.bounds_refresh_every == 0) {
         RefreshBounds();
       }
+      // Schedules fire at their batch also when a resumed run starts there:
+      // checkpoints are written before a batch's schedules run.
       for (double at : stage.schedule.bone_reinit_at) {
-        if (B > 0 && it == static_cast<int>(std::lround(at * stage.iterations)) && it > start) {
+        if (B > 0 && it == static_cast<int>(std::lround(at * stage.iterations))) {
           ReinitializeBones(state);
         }
       }
