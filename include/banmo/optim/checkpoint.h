@@ -5,7 +5,10 @@
 //
 // Layout of a checkpoint folder DIR:
 //   DIR/model.yaml     resolved solver config (model options inside), frames per
-//                      video, cameras, stage and iteration
+//                      video, cameras, stage and iteration, and model_size
+//                      {num_bones, sdf_width, color_width}: the model's current
+//                      sizes, which override the config's (automatic sizing,
+//                      optim/auto_size.h, grows them during a run)
 //   DIR/params.bin     all parameter blocks, little-endian doubles (see .cc)
 //   DIR/state.bin      optional solver state (opaque bytes owned by optim/)
 #pragma once
@@ -19,9 +22,9 @@
 namespace banmo {
 
 struct CheckpointInfo {
-  int stage = 0;        // index of the stage in progress
-  int iteration = 0;    // batches done in that stage
-  std::string config;   // the resolved solver config (YAML text)
+  int stage = 0;       // index of the stage in progress
+  int iteration = 0;   // batches done in that stage
+  std::string config;  // the resolved solver config (YAML text)
 };
 
 // Writes the model (and optional solver state bytes) to DIR atomically.
