@@ -145,6 +145,7 @@ std::vector<SurfacePoint> SurfacePoints(const Model& model, const std::vector<Ra
       SurfacePoint& p = out[r];
       p.video = ray.video;
       p.frame = ray.frame;
+      p.mask = ray.mask;
       p.attribution.assign(B, 0.0);
       for (LossTerm term : {LossTerm::kRgb, LossTerm::kSilhouette}) {
         const int row = ev.term_row[static_cast<int>(term)];
@@ -200,6 +201,14 @@ BoneAttribution AttributeErrors(const std::vector<SurfacePoint>& points, int num
     a.ratio[b] = a.mass_share[b] > 0 ? a.error_share[b] / a.mass_share[b] : 0.0;
   }
   return a;
+}
+
+std::vector<SurfacePoint> ObjectRays(const std::vector<SurfacePoint>& points) {
+  std::vector<SurfacePoint> out;
+  for (const SurfacePoint& p : points) {
+    if (p.mask > 0.5 || p.opacity >= 0.5) out.push_back(p);
+  }
+  return out;
 }
 
 void SplitBoneGeometry(const double* bone, const Eigen::Vector3d& direction, double offset,
@@ -300,9 +309,18 @@ const TangentRemap* AutoSizeRemaps::For(const std::string& block_name) const {
 std::string AutoSizeEvent::Describe() const {
   char buf[256];
   std::string out;
-  std::snprintf(buf, sizeof(buf), "auto-size at batch %d: %d rays, mean error %.4g; ", iteration,
-                rays, mean_error);
+  std::snprintf(buf, sizeof(buf),
+                "auto-size at batch %d: %d rays (%d on the object), mean error %.4g", iteration,
+                rays, object_rays, mean_error);
   out += buf;
+  const std::vector<double>& ratio = attribution.ratio;
+  if (!ratio.empty()) {
+    const int top = static_cast<int>(std::max_element(ratio.begin(), ratio.end()) - ratio.begin());
+    std::snprintf(buf, sizeof(buf), ", largest ratio %.2f (bone %d, %.0f %% of the rays)",
+                  ratio[top], top, 100.0 * attribution.mass_share[top]);
+    out += buf;
+  }
+  out += "; ";
   if (!splits.empty()) {
     std::snprintf(buf, sizeof(buf), "bones %d -> %d (split", bones_before, bones_after);
     out += buf;
@@ -327,6 +345,10 @@ std::string AutoSizeEvent::Describe() const {
   } else {
     std::snprintf(buf, sizeof(buf), "no growth (%d bones, widths %d / %d)", bones_after,
                   sdf_width_after, color_width_after);
+    out += buf;
+  }
+  if (seconds > 0) {
+    std::snprintf(buf, sizeof(buf), " [%.2f s]", seconds);
     out += buf;
   }
   return out;
@@ -361,11 +383,13 @@ AutoSizeEvent AutoSizeGrow(const AutoSizeOptions& options, const RaySampler& sam
     batch.EvaluateAll(false);
     for (int r = 0; r < batch.num_rays(); ++r) evaluations.push_back(batch.evaluation(r));
   }
-  const std::vector<SurfacePoint> points = SurfacePoints(*model, rays, evaluations);
-  event.rays = static_cast<int>(points.size());
+  const std::vector<SurfacePoint> all = SurfacePoints(*model, rays, evaluations);
+  const std::vector<SurfacePoint> points = ObjectRays(all);
+  event.rays = static_cast<int>(all.size());
+  event.object_rays = static_cast<int>(points.size());
   event.attribution = AttributeErrors(points, B);
   event.mean_error = event.attribution.mean_error;
-  const std::vector<SurfacePoint> measure = MeasurePoints(points);
+  const std::vector<SurfacePoint> measure = MeasurePoints(all);
 
   // 2. Bone splits, largest ratio first.
   const BoneSet before = BoneSet::Of(*model);
@@ -377,7 +401,7 @@ AutoSizeEvent AutoSizeGrow(const AutoSizeOptions& options, const RaySampler& sam
   for (int b : order) {
     if (B + static_cast<int>(event.splits.size()) >= options.max_bones) break;
     if (event.attribution.ratio[b] < options.error_ratio) break;
-    if (event.attribution.mass_share[b] * event.rays < kMinSplitRays) continue;
+    if (event.attribution.mass_share[b] * event.object_rays < kMinSplitRays) continue;
     BoneSplit split;
     split.bone = b;
     split.direction = SplitDirection(before.bones.data() + kBoneSize * b, points, b);

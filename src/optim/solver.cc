@@ -477,6 +477,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
             it != static_cast<int>(std::lround(at * stage.iterations))) {
           continue;
         }
+        Timer grow_timer;
         for (ceres::ResidualBlockId id : batch_blocks) problem.RemoveResidualBlock(id);
         batch_blocks.clear();
         regularizer_blocks.clear();
@@ -496,6 +497,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         name_blocks();
         add_model_blocks();
         batch.Invalidate();
+        event.seconds = grow_timer.Seconds();
         if (!options.quiet) {
           std::printf("[%s] %s\n", stage.name.c_str(), event.Describe().c_str());
           std::fflush(stdout);

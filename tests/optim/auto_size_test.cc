@@ -306,6 +306,8 @@ TEST(AutoSizeGrow, SplitsBonesDeterministically) {
     EXPECT_EQ(model->num_bones(), e.bones_after);
     EXPECT_EQ(static_cast<int>(e.splits.size()), e.bones_after - 4);
     EXPECT_EQ(e.rays, 512);
+    EXPECT_GT(e.object_rays, 100);  // about half the rays are drawn inside the mask
+    EXPECT_LE(e.object_rays, e.rays);
     EXPECT_GT(e.mean_error, 0.0);
     EXPECT_GE(e.split_ratios[0], 1.0);
     EXPECT_GT(e.warp.points, 0);

@@ -12,9 +12,12 @@
 //       a_rb = sum_i omega_i w_b(x_i) / sum_i omega_i,
 //     w_b(x_i) the backward skinning weights of sample i at time t (sum_b
 //     a_rb = 1);
-//  3. per bone: mass share m_b = sum_r a_rb / R, error share
-//     E_b = sum_r e_r a_rb / sum_r e_r, ratio E_b / m_b (the mean error of
-//     the bone's rays over the mean error of all rays);
+//  3. over the object rays (mask 1, or rendered opacity >= 0.5: rays that
+//     see the object in the data or in the model; correctly empty
+//     background rays would only dilute the shares), per bone: mass share
+//     m_b = sum_r a_rb / R, error share E_b = sum_r e_r a_rb / sum_r e_r,
+//     ratio E_b / m_b (the mean error of the bone's rays over the mean
+//     error of all object rays);
 //  4. bones with ratio >= auto_size.error_ratio and at least
 //     kMinSplitRays rays' worth of mass are split, largest ratio first,
 //     while B < auto_size.max_bones (SplitBoneGeometry: two moment-matched
@@ -72,6 +75,7 @@ struct SurfacePoint {
   Eigen::Vector3d canonical = Eigen::Vector3d::Zero();  // omega-weighted backward warps
   double opacity = 0.0;                                 // sum_i tau_i
   double error = 0.0;                                   // e_r
+  double mask = -1.0;                                   // the ray's mask (< 0 unknown)
   std::vector<double> attribution;                      // a_rb (B values, sum 1)
 };
 
@@ -87,6 +91,8 @@ struct BoneAttribution {
   double mean_error = 0.0;          // mean e_r
 };
 BoneAttribution AttributeErrors(const std::vector<SurfacePoint>& points, int num_bones);
+// The object rays of step 3: mask > 0.5 or opacity >= 0.5.
+std::vector<SurfacePoint> ObjectRays(const std::vector<SurfacePoint>& points);
 
 // Two bones replacing `bone` (kBoneSize values each): a Gaussian mixture of
 // the two copies with the bone's moments. With the covariance
@@ -140,8 +146,10 @@ struct AutoSizeRemaps {
 // What a grow step measured and did.
 struct AutoSizeEvent {
   int stage = 0, iteration = 0;  // filled by the solver
-  int rays = 0;
-  double mean_error = 0.0;
+  double seconds = 0.0;          // wall time, with the problem rebuild (filled by the solver)
+  int rays = 0;                  // evaluation rays
+  int object_rays = 0;           // of which object rays (attribution)
+  double mean_error = 0.0;       // mean e_r of the object rays
   int bones_before = 0, bones_after = 0;
   int sdf_width_before = 0, sdf_width_after = 0;
   int color_width_before = 0, color_width_after = 0;
