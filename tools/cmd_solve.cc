@@ -49,6 +49,16 @@ int RunSolve(int argc, char** argv) {
   SolverConfig config = LoadSolverConfig(config_path);
   if (seed >= 0) config.seed = static_cast<uint32_t>(seed);
   if (threads >= 0) config.threads = threads;
+  // Retargeting an automatically sized model: its grown sizes come from its
+  // checkpoint, and nothing grows (the shared blocks are held constant).
+  const bool retarget_auto_sized = !retarget_dir.empty() && config.model.auto_size.enabled;
+  if (retarget_auto_sized) {
+    std::printf(
+        "banmo solve: --retarget: model.auto_size switched off; bones and MLP widths "
+        "from %s\n",
+        retarget_dir.c_str());
+    config.model.auto_size.enabled = false;
+  }
   if (resolution < 16 || resolution > 1024) {
     ThrowInputError("--resolution: expected 16..1024, got ", resolution);
   }
@@ -80,9 +90,19 @@ int RunSolve(int argc, char** argv) {
   MakeDirectories(out_dir);
   WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));
 
+  std::unique_ptr<Model> source;
+  ModelOptions model_options = config.model;
+  if (!retarget_dir.empty()) {
+    CheckpointInfo info;
+    source = LoadCheckpoint(retarget_dir, &info);
+    if (retarget_auto_sized) {
+      model_options.num_bones = source->num_bones();
+      model_options.field.sdf_width = source->options().field.sdf_width;
+      model_options.field.color_width = source->options().field.color_width;
+    }
+  }
   // The scene scale (docs/solver.md, "Scene scale"), estimated here when
   // auto so that the estimate can be reported.
-  ModelOptions model_options = config.model;
   std::string scale_origin = "model.scene_scale";
   if (!model_options.scene_scale) {
     const SceneScaleEstimate e = EstimateSceneScale(dataset);
@@ -97,9 +117,7 @@ int RunSolve(int argc, char** argv) {
   options.out_dir = out_dir;
   options.resume = resume;
   options.quiet = quiet;
-  if (!retarget_dir.empty()) {
-    CheckpointInfo info;
-    std::unique_ptr<Model> source = LoadCheckpoint(retarget_dir, &info);
+  if (source != nullptr) {
     CopySharedParameters(*source, model.get(), retarget_dir);  // optim/solver.h
     options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones", "delta_skinning"};
     scale_origin = "from the --retarget model";

@@ -304,11 +304,18 @@ int Run(int argc, char** argv) {
   done << "batches " << last.total_batches << "\nsolve_seconds " << last.solve_seconds
        << "\nwall_seconds " << wall.Seconds() << "\ncpu_seconds " << ProcessCpuSeconds()
        << "\ntrace_seconds " << trace_seconds << "\nnonfinite " << (nonfinite ? 1 : 0)
-       << "\nbudget_hit " << (budget_hit ? 1 : 0) << "\n";
+       << "\nbudget_hit " << (budget_hit ? 1 : 0);
+  // The final model's sizes (automatic sizing grows them).
+  const ModelOptions& sizes = solver.model().options();
+  done << "\nnum_bones " << sizes.num_bones << "\nsdf_width " << sizes.field.sdf_width
+       << "\ncolor_width " << sizes.field.color_width << "\n";
   WriteFileAtomic(o.out_dir + "/done", done.str());
-  std::printf("banmo_trace %s on %s: %d batches, solve %.1f s, wall %.1f s (trace %.1f s)%s\n",
-              o.config_name.c_str(), o.scene_name.c_str(), last.total_batches, last.solve_seconds,
-              wall.Seconds(), trace_seconds, nonfinite ? ", NON-FINITE" : "");
+  std::printf(
+      "banmo_trace %s on %s: %d batches, solve %.1f s, wall %.1f s (trace %.1f s), %d bones, "
+      "widths %d / %d%s\n",
+      o.config_name.c_str(), o.scene_name.c_str(), last.total_batches, last.solve_seconds,
+      wall.Seconds(), trace_seconds, sizes.num_bones, sizes.field.sdf_width,
+      sizes.field.color_width, nonfinite ? ", NON-FINITE" : "");
   return nonfinite ? 3 : 0;
 }
 

@@ -1,7 +1,9 @@
 #include "banmo/model/model.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
@@ -17,6 +19,45 @@ void ModelOptions::Check() const {
   if (!(init_beta > 0)) ThrowInputError("model.init_beta: expected > 0");
   if (scene_scale && !(*scene_scale > 0 && std::isfinite(*scene_scale))) {
     ThrowInputError("model.scene_scale: expected auto or a finite number > 0, got ", *scene_scale);
+  }
+  const std::string a = "model.auto_size.";
+  if (auto_size.enabled && delta_skinning.enabled) {
+    ThrowInputError(a,
+                    "enabled: automatic sizing cannot be combined with delta skinning "
+                    "(MLP_Delta's output layer has one unit per bone, so a bone split would "
+                    "have to invent its weights); set model.delta_skinning.enabled: false");
+  }
+  // The bounds relative to the starting sizes matter only when enabled (a
+  // disabled block with the defaults must not constrain num_bones).
+  const int min_bones = auto_size.enabled ? num_bones : 0;
+  if (auto_size.max_bones < min_bones || auto_size.max_bones > 256) {
+    ThrowInputError(a, "max_bones: expected an integer in ",
+                    auto_size.enabled ? "model.num_bones" : "0", "..256 (", min_bones,
+                    "..256), got ", auto_size.max_bones);
+  }
+  for (size_t i = 0; i < auto_size.grow_at.size(); ++i) {
+    const double f = auto_size.grow_at[i];
+    if (!(f >= 0 && f <= 1)) {
+      ThrowInputError(a, "grow_at[", i, "]: expected a fraction in [0, 1], got ", f);
+    }
+    if (i > 0 && !(f > auto_size.grow_at[i - 1])) {
+      ThrowInputError(a, "grow_at[", i, "]: expected increasing fractions, got ", f, " after ",
+                      auto_size.grow_at[i - 1]);
+    }
+  }
+  if (!(auto_size.error_ratio >= 1) || !std::isfinite(auto_size.error_ratio)) {
+    ThrowInputError(a, "error_ratio: expected a finite number >= 1, got ", auto_size.error_ratio);
+  }
+  if (auto_size.eval_rays <= 0) {
+    ThrowInputError(a, "eval_rays: expected an integer > 0, got ", auto_size.eval_rays);
+  }
+  if (auto_size.max_width < 0 ||
+      (auto_size.enabled && auto_size.max_width > 0 &&
+       (auto_size.max_width < field.sdf_width || auto_size.max_width < field.color_width))) {
+    ThrowInputError(a,
+                    "max_width: expected 0 (widths fixed) or an integer >= model.field.sdf_width "
+                    "and color_width (",
+                    std::max(field.sdf_width, field.color_width), "), got ", auto_size.max_width);
   }
   if (delta_skinning.enabled) {
     delta_skinning.Check();
@@ -124,6 +165,38 @@ void Model::ForEachBlock(
       if (delta_) fn(frame + "/pose_code", f.pose_code.data(), pose_code_size());
     }
   }
+}
+
+void Model::SetBones(int num_bones, const std::vector<double>& bones) {
+  CHECK(delta_ == nullptr) << "the bone count cannot change with delta skinning";
+  CHECK_GE(num_bones, 0);
+  CHECK_EQ(static_cast<int>(bones.size()), kBoneSize * num_bones);
+  const int old_bones = options_.num_bones;
+  options_.num_bones = num_bones;
+  bones_ = bones;
+  for (VideoParameters& video : videos_) {
+    for (FrameParameters& f : video.frames) {
+      f.bones_t.resize(kPoseSize * num_bones);
+      for (int b = old_bones; b < num_bones; ++b) PoseSetIdentity(f.bones_t.data() + kPoseSize * b);
+    }
+  }
+}
+
+void Model::SetFieldWidths(int sdf_width, int color_width, std::vector<double> sdf,
+                           std::vector<double> color) {
+  CanonicalFieldOptions field = options_.field;
+  field.sdf_width = sdf_width;
+  field.color_width = color_width;
+  auto next = std::make_unique<CanonicalField>(field);
+  CHECK_EQ(static_cast<int>(sdf.size()), next->SdfParameterSize());
+  CHECK_EQ(static_cast<int>(color.size()), next->ColorParameterSize());
+  CHECK_EQ(next->EmbeddingParameterSize(), embedding_size());
+  const double alpha = field_->position_encoding().annealing_alpha();
+  if (alpha >= 0) next->SetAnnealing(alpha);
+  options_.field = field;
+  field_ = std::move(next);
+  sdf_ = std::move(sdf);
+  color_ = std::move(color);
 }
 
 }  // namespace banmo

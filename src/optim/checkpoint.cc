@@ -72,6 +72,13 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
   out << YAML::Key << "iteration" << YAML::Value << info.iteration;
   out << YAML::Key << "parameters" << YAML::Value << count;
   out << YAML::Key << "scene_scale" << YAML::Value << FormatDouble(model.scene_scale());
+  // The model's current sizes: automatic sizing (optim/auto_size.h) may have
+  // grown them beyond the config's model section.
+  out << YAML::Key << "model_size" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  out << YAML::Key << "num_bones" << YAML::Value << model.num_bones();
+  out << YAML::Key << "sdf_width" << YAML::Value << model.options().field.sdf_width;
+  out << YAML::Key << "color_width" << YAML::Value << model.options().field.color_width;
+  out << YAML::EndMap;
   out << YAML::Key << "videos" << YAML::Value << YAML::BeginSeq;
   for (int v = 0; v < model.num_videos(); ++v) {
     const VideoParameters& vp = model.video(v);
@@ -124,6 +131,7 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
   std::vector<PinholeCamera> cameras;
   uint64_t expected = 0;
   double scene_scale = 1.0;  // checkpoints written before the key existed
+  YAML::Node model_size;
   try {
     if (root["format"].as<std::string>() != "banmo-checkpoint-1") {
       ThrowInputError(yaml_path, ": unknown checkpoint format '", root["format"].as<std::string>(),
@@ -134,6 +142,7 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
     ci.config = root["config"].as<std::string>();
     expected = root["parameters"].as<uint64_t>();
     if (root["scene_scale"]) scene_scale = root["scene_scale"].as<double>();
+    model_size = root["model_size"];  // absent in checkpoints written before auto-sizing
     for (const YAML::Node& v : root["videos"]) {
       frames.push_back(v["frames"].as<int>());
       PinholeCamera cam;
@@ -149,7 +158,21 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
     ThrowInputError(yaml_path, ": key 'scene_scale': expected a finite number > 0, got ",
                     scene_scale);
   }
-  const SolverConfig config = ParseSolverConfig(ci.config, yaml_path + " (config)");
+  SolverConfig config = ParseSolverConfig(ci.config, yaml_path + " (config)");
+  if (model_size) {
+    try {
+      config.model.num_bones = model_size["num_bones"].as<int>();
+      config.model.field.sdf_width = model_size["sdf_width"].as<int>();
+      config.model.field.color_width = model_size["color_width"].as<int>();
+    } catch (const YAML::Exception& e) {
+      ThrowInputError(yaml_path, ": malformed key 'model_size': ", e.what());
+    }
+    try {
+      config.model.Check();
+    } catch (const InputError& e) {
+      ThrowInputError(yaml_path, ": model_size: ", e.what());
+    }
+  }
   auto model = std::make_unique<Model>(config.model, frames, cameras);
   model->set_scene_scale(scene_scale);
 

@@ -65,6 +65,16 @@ void VisitFields(V& v, DeltaSkinningOptions& o) {
 }
 
 template <class V>
+void VisitFields(V& v, AutoSizeOptions& o) {
+  v("enabled", o.enabled);
+  v("max_bones", o.max_bones);
+  v("grow_at", o.grow_at);
+  v("error_ratio", o.error_ratio);
+  v("eval_rays", o.eval_rays);
+  v("max_width", o.max_width);
+}
+
+template <class V>
 void VisitFields(V& v, ModelOptions& o) {
   v("field", o.field);
   v("num_bones", o.num_bones);
@@ -73,6 +83,7 @@ void VisitFields(V& v, ModelOptions& o) {
   v("seed", o.seed);
   v("delta_skinning", o.delta_skinning);
   v("scene_scale", o.scene_scale);
+  v("auto_size", o.auto_size);
 }
 
 template <class V>

@@ -17,6 +17,7 @@
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/regularizers.h"
+#include "banmo/optim/auto_size.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/ray_sampler.h"
 #include "banmo/optim/scene_scale.h"
@@ -315,11 +316,16 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
   Timer run_timer;
   double callback_seconds = 0.0;  // time inside options.on_batch (excluded from timings)
   Model& model = *model_;
-  const int B = model.num_bones();
+  int B = model.num_bones();  // grows with automatic sizing
   RaySampler sampler(dataset_);
   sampler.set_error_cache(state->error_cache);
   std::map<const double*, std::string> block_names;
-  model.ForEachBlock([&](const std::string& name, double* data, int) { block_names[data] = name; });
+  auto name_blocks = [&] {
+    block_names.clear();
+    model.ForEachBlock(
+        [&](const std::string& name, double* data, int) { block_names[data] = name; });
+  };
+  name_blocks();
   const std::string resolved_config = SolverConfigToYaml(config_);
 
   auto save = [&](int stage, int iteration) {
@@ -362,35 +368,41 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       problem.AddParameterBlock(data, size, manifold.release());
       groups[group].push_back(data);
     };
-    add_block("sdf", model.sdf(), model.sdf_size(), nullptr);
-    add_block("color", model.color(), model.color_size(), nullptr);
-    add_block("embedding", model.embedding(), model.embedding_size(), nullptr);
-    add_block("log_beta", model.log_beta(), 1, nullptr);
-    if (B > 0) {
-      add_block("bones", model.bones(), model.bones_size(),
-                MakeStackedQuaternionBlockManifold(B, kBoneSize, kBoneQw));
-    }
-    if (model.has_delta_skinning()) {
-      add_block("delta_skinning", model.delta_skinning_params(), model.delta_skinning_size(),
-                nullptr);
-      add_block("delta_skinning", model.rest_pose_code(), model.pose_code_size(), nullptr);
-    }
-    for (int v = 0; v < model.num_videos(); ++v) {
-      add_block("intrinsics", model.video(v).intrinsics.data(), kIntrinsicsSize, nullptr);
-      add_block("appearance", model.video(v).appearance.data(), model.appearance_size(), nullptr);
-      for (size_t t = 0; t < model.video(v).frames.size(); ++t) {
-        FrameParameters& f = model.frame(v, t);
-        add_block("root", f.root_delta.data(), kPoseSize, MakePoseManifold());
-        if (B > 0)
-          add_block("bones_t", f.bones_t.data(), kPoseSize * B, MakeStackedPoseManifold(B));
-        if (model.has_delta_skinning()) {
-          add_block("pose_code", f.pose_code.data(), model.pose_code_size(), nullptr);
+    // Every block with its manifold and constancy (again after a grow step
+    // of automatic sizing, which moves blocks).
+    auto add_model_blocks = [&] {
+      groups.clear();
+      add_block("sdf", model.sdf(), model.sdf_size(), nullptr);
+      add_block("color", model.color(), model.color_size(), nullptr);
+      add_block("embedding", model.embedding(), model.embedding_size(), nullptr);
+      add_block("log_beta", model.log_beta(), 1, nullptr);
+      if (B > 0) {
+        add_block("bones", model.bones(), model.bones_size(),
+                  MakeStackedQuaternionBlockManifold(B, kBoneSize, kBoneQw));
+      }
+      if (model.has_delta_skinning()) {
+        add_block("delta_skinning", model.delta_skinning_params(), model.delta_skinning_size(),
+                  nullptr);
+        add_block("delta_skinning", model.rest_pose_code(), model.pose_code_size(), nullptr);
+      }
+      for (int v = 0; v < model.num_videos(); ++v) {
+        add_block("intrinsics", model.video(v).intrinsics.data(), kIntrinsicsSize, nullptr);
+        add_block("appearance", model.video(v).appearance.data(), model.appearance_size(), nullptr);
+        for (size_t t = 0; t < model.video(v).frames.size(); ++t) {
+          FrameParameters& f = model.frame(v, t);
+          add_block("root", f.root_delta.data(), kPoseSize, MakePoseManifold());
+          if (B > 0)
+            add_block("bones_t", f.bones_t.data(), kPoseSize * B, MakeStackedPoseManifold(B));
+          if (model.has_delta_skinning()) {
+            add_block("pose_code", f.pose_code.data(), model.pose_code_size(), nullptr);
+          }
         }
       }
-    }
-    for (const std::string& g : constant) {
-      for (double* p : groups[g]) problem.SetParameterBlockConstant(p);
-    }
+      for (const std::string& g : constant) {
+        for (double* p : groups[g]) problem.SetParameterBlockConstant(p);
+      }
+    };
+    add_model_blocks();
     // Delta skinning (schedule.delta_skinning_from): before the fraction its
     // groups are held constant, and while MLP_Delta's output is still zero
     // the batch leaves it out (same values, no cost).
@@ -467,10 +479,48 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
           it % stage.schedule.bounds_refresh_every == 0) {
         RefreshBounds();
       }
+      // Schedules fire at their batch also when a resumed run starts there:
+      // checkpoints are written before a batch's schedules run.
       for (double at : stage.schedule.bone_reinit_at) {
-        if (B > 0 && it == static_cast<int>(std::lround(at * stage.iterations)) && it > start) {
+        if (B > 0 && it == static_cast<int>(std::lround(at * stage.iterations))) {
           ReinitializeBones(state);
         }
+      }
+      // Automatic model sizing (optim/auto_size.h), first stage only: the
+      // problem drops every block, the model grows, the blocks come back
+      // (new sizes and addresses) and the Adam moments follow their entries.
+      const AutoSizeOptions& auto_size = config_.model.auto_size;
+      for (double at : auto_size.grow_at) {
+        if (!auto_size.enabled || s != 0 ||
+            it != static_cast<int>(std::lround(at * stage.iterations))) {
+          continue;
+        }
+        Timer grow_timer;
+        for (ceres::ResidualBlockId id : batch_blocks) problem.RemoveResidualBlock(id);
+        batch_blocks.clear();
+        regularizer_blocks.clear();
+        std::vector<double*> blocks;
+        problem.GetParameterBlocks(&blocks);
+        for (double* p : blocks) problem.RemoveParameterBlock(p);
+        AutoSizeRemaps remaps;
+        AutoSizeEvent event =
+            AutoSizeGrow(auto_size, sampler, stage.sampling, stage.samples_per_ray, bounds_,
+                         &state->rng, &model, &remaps);
+        event.stage = s;
+        event.iteration = it;
+        for (auto& [name, moments] : state->adam) {
+          if (const TangentRemap* remap = remaps.For(name)) remap->Apply(&moments.m, &moments.v);
+        }
+        B = model.num_bones();
+        name_blocks();
+        add_model_blocks();
+        batch.Invalidate();
+        event.seconds = grow_timer.Seconds();
+        if (!options.quiet) {
+          std::printf("[%s] %s\n", stage.name.c_str(), event.Describe().c_str());
+          std::fflush(stdout);
+        }
+        result.auto_size.push_back(std::move(event));
       }
 
       // ---- The minibatch. ----

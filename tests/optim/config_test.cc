@@ -134,6 +134,8 @@ TEST(SolverConfig, UnknownKeysNamePathAndLine) {
       {"defaults:\n  sampling:\n    foo: 1\nstages: [{}]\n",
        "test.yaml: unknown key 'defaults.sampling.foo' (line 3)"},
       {"stages:\n  - name: a\n    name: b\n", "test.yaml: duplicate key 'stages[0].name' (line 3)"},
+      {"model:\n  auto_size: {enabled: true, max_bone: 8}\nstages: [{}]\n",
+       "test.yaml: unknown key 'model.auto_size.max_bone' (line 2)"},
   };
   for (const Case& c : cases) {
     EXPECT_EQ(ParseError(c.yaml), c.message) << c.yaml;
@@ -329,6 +331,31 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
          c->model.delta_skinning.enabled = true;
          c->model.num_bones = 0;
        }},
+      {"model.auto_size.enabled",
+       [&](SolverConfig* c) {
+         c->model.auto_size.enabled = true;
+         c->model.delta_skinning.enabled = true;
+       }},
+      {"model.auto_size.max_bones",
+       [&](SolverConfig* c) {
+         c->model.auto_size.enabled = true;
+         c->model.auto_size.max_bones = c->model.num_bones - 1;
+       }},
+      {"model.auto_size.max_bones", [&](SolverConfig* c) { c->model.auto_size.max_bones = 257; }},
+      {"model.auto_size.grow_at[0]", [&](SolverConfig* c) { c->model.auto_size.grow_at = {1.5}; }},
+      {"model.auto_size.grow_at[1]",
+       [&](SolverConfig* c) {
+         c->model.auto_size.grow_at = {0.5, 0.5};
+       }},
+      {"model.auto_size.error_ratio",
+       [&](SolverConfig* c) { c->model.auto_size.error_ratio = 0.9; }},
+      {"model.auto_size.eval_rays", [&](SolverConfig* c) { c->model.auto_size.eval_rays = 0; }},
+      {"model.auto_size.max_width", [&](SolverConfig* c) { c->model.auto_size.max_width = -1; }},
+      {"model.auto_size.max_width",
+       [&](SolverConfig* c) {
+         c->model.auto_size.enabled = true;
+         c->model.auto_size.max_width = c->model.field.sdf_width - 1;
+       }},
       {"stages[1].checkpoint_every", [&](SolverConfig* c) { S(c).checkpoint_every = -1; }},
       {"stages[1].log_every", [&](SolverConfig* c) { S(c).log_every = -1; }},
   };
@@ -443,6 +470,12 @@ SolverConfig EveryFieldChanged() {
   m.delta_skinning.pose_code_dim = 12;
   m.delta_skinning.code_init_std = 0.07;
   m.scene_scale = 0.1 / 3.0;
+  // auto_size.enabled stays false: it cannot be combined with delta skinning.
+  m.auto_size.max_bones = 40;
+  m.auto_size.grow_at = {0.25, 0.5};
+  m.auto_size.error_ratio = 2.25;
+  m.auto_size.eval_rays = 1000;
+  m.auto_size.max_width = 96;
   c.seed = 123456789u;
   c.threads = 3;
   for (int i = 0; i < 2; ++i) {
@@ -524,6 +557,12 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
   EXPECT_EQ(a.model.delta_skinning.pose_code_dim, b.model.delta_skinning.pose_code_dim);
   EXPECT_EQ(a.model.delta_skinning.code_init_std, b.model.delta_skinning.code_init_std);
   EXPECT_EQ(a.model.scene_scale, b.model.scene_scale);
+  EXPECT_EQ(a.model.auto_size.enabled, b.model.auto_size.enabled);
+  EXPECT_EQ(a.model.auto_size.max_bones, b.model.auto_size.max_bones);
+  EXPECT_EQ(a.model.auto_size.grow_at, b.model.auto_size.grow_at);
+  EXPECT_EQ(a.model.auto_size.error_ratio, b.model.auto_size.error_ratio);
+  EXPECT_EQ(a.model.auto_size.eval_rays, b.model.auto_size.eval_rays);
+  EXPECT_EQ(a.model.auto_size.max_width, b.model.auto_size.max_width);
   EXPECT_EQ(a.seed, b.seed);
   EXPECT_EQ(a.threads, b.threads);
   ASSERT_EQ(a.stages.size(), b.stages.size());
@@ -624,10 +663,48 @@ TEST(SolverConfig, RoundTripKeepsEveryField) {
     // Must be true in a valid config; EveryConstraintNamesItsKey shows the
     // reader reads it (include_input: false fails the parse).
     if (key == ".model.field.position_encoding.include_input") continue;
+    // EveryFieldChanged has delta skinning on, which excludes auto_size
+    // (EveryConstraintNamesItsKey); AutoSizeRoundTrips covers the key.
+    if (key == ".model.auto_size.enabled") continue;
     EXPECT_NE(changed[key], value) << key << " unchanged by EveryFieldChanged";
   }
   // And the default config round-trips too.
   ExpectSame(d, ParseSolverConfig(SolverConfigToYaml(d), "defaults"));
+}
+
+// model.auto_size: read, checked, written and read back; the delta-skinning
+// conflict says why.
+TEST(SolverConfig, AutoSizeRoundTrips) {
+  const SolverConfig c = ParseSolverConfig(
+      "model:\n  num_bones: 4\n  auto_size: {enabled: true, max_bones: 16, grow_at: [0.5], "
+      "error_ratio: 2, eval_rays: 512, max_width: 128}\nstages: [{}]\n",
+      "test.yaml");
+  EXPECT_TRUE(c.model.auto_size.enabled);
+  EXPECT_EQ(c.model.auto_size.max_bones, 16);
+  EXPECT_EQ(c.model.auto_size.grow_at, std::vector<double>{0.5});
+  EXPECT_EQ(c.model.auto_size.error_ratio, 2.0);
+  EXPECT_EQ(c.model.auto_size.eval_rays, 512);
+  EXPECT_EQ(c.model.auto_size.max_width, 128);
+  const std::string yaml = SolverConfigToYaml(c);
+  EXPECT_NE(yaml.find("auto_size:"), std::string::npos) << yaml;
+  ExpectSame(c, ParseSolverConfig(yaml, "resolved"));
+  // Defaults.
+  const AutoSizeOptions d = ParseSolverConfig(kMinimal, "test.yaml").model.auto_size;
+  EXPECT_FALSE(d.enabled);
+  EXPECT_EQ(d.max_bones, 32);
+  EXPECT_EQ(d.grow_at, (std::vector<double>{0.4, 0.55, 0.7}));
+  EXPECT_EQ(d.error_ratio, 1.5);
+  EXPECT_EQ(d.eval_rays, 2048);
+  EXPECT_EQ(d.max_width, 0);
+  // A disabled block does not constrain the model (64 bones > max_bones 32).
+  EXPECT_NO_THROW(ParseSolverConfig("model: {num_bones: 64}\nstages: [{}]\n", "test.yaml"));
+  // With delta skinning: an error naming the key and the reason.
+  const std::string message = ParseError(
+      "model:\n  delta_skinning: {enabled: true}\n  auto_size:\n    enabled: true\n"
+      "stages: [{}]\n");
+  EXPECT_EQ(message.rfind("test.yaml: model.auto_size.enabled: ", 0), 0u) << message;
+  EXPECT_NE(message.find("MLP_Delta"), std::string::npos) << message;
+  EXPECT_NE(message.find("(line 4)"), std::string::npos) << message;
 }
 
 TEST(SolverConfig, ResolvedYamlIsReadable) {

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "banmo/extract/extract.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/util/error.h"
 #include "tiny_solver_scene.h"
@@ -199,6 +200,100 @@ TEST(Solver, RetargetingFitsPosesAndKeepsSharedParameters) {
   EXPECT_TRUE(r.stages[0].finite);
   EXPECT_EQ(0, std::memcmp(sdf.data(), retarget.model().sdf(), sizeof(double) * sdf.size()));
   EXPECT_NE(retarget.model().frame(0, 0).root_delta, root_before);
+}
+
+// Runs `config` straight and as interrupted pieces (stopping after each
+// total batch count in `stops`, then resuming); the final parameters must
+// be the same bit for bit.
+void ExpectResumeEqualsStraight(const SolverConfig& config, const std::vector<int>& stops,
+                                const std::string& name) {
+  const Dataset& data = TinyDataset();
+  const std::string root = ::testing::TempDir() + "/" + name;
+  std::filesystem::remove_all(root);
+  SolveOptions options;
+  options.quiet = true;
+  options.out_dir = root + "/straight";
+  Solver straight(data, config, MakeModelForDataset(data, config.model));
+  ASSERT_FALSE(straight.Run(options).interrupted);
+
+  options.out_dir = root + "/resumed";
+  for (size_t i = 0; i <= stops.size(); ++i) {
+    options.stop_after_batches = i < stops.size() ? stops[i] : -1;
+    options.resume = i > 0;
+    Solver piece(data, config, MakeModelForDataset(data, config.model));
+    ASSERT_EQ(piece.Run(options).interrupted, i < stops.size()) << "piece " << i;
+    if (i == stops.size()) {
+      const std::vector<double> a = AllParameters(straight.model());
+      const std::vector<double> b = AllParameters(piece.model());
+      ASSERT_EQ(a.size(), b.size());
+      EXPECT_EQ(0, std::memcmp(a.data(), b.data(), sizeof(double) * a.size()))
+          << "resumed parameters differ from the uninterrupted run";
+    }
+  }
+}
+
+// A checkpoint written exactly at a bone re-initialisation batch (before the
+// batch's schedules run) resumes into that re-initialisation.
+TEST(Solver, ResumeAtABoneReinitBatchReinitializes) {
+  SolverConfig config = TinyConfig("adam", 6);
+  config.stages[0].schedule.bone_reinit_at = {0.5};  // batch 3
+  ExpectResumeEqualsStraight(config, {3}, "banmo_resume_reinit_test");
+}
+
+SolverConfig AutoSizeConfig(int iterations) {
+  SolverConfig config = TinyConfig("adam", iterations);
+  config.model.auto_size.enabled = true;
+  config.model.auto_size.grow_at = {0.3, 0.6};
+  config.model.auto_size.error_ratio = 1.0;  // some bone is always at or above the mean
+  config.model.auto_size.max_bones = 6;
+  config.model.auto_size.max_width = 64;
+  config.model.auto_size.eval_rays = 192;
+  return config;
+}
+
+// A tiny solve with automatic sizing: bones split at the first grow point
+// (up to max_bones), the MLPs widen at the second, the run stays finite and
+// the model has a surface.
+TEST(Solver, AutoSizeGrowsBonesThenWidthsInATinySolve) {
+  const Dataset& data = TinyDataset();
+  const SolverConfig config = AutoSizeConfig(20);
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  const SolveResult r = solver.Run(options_quiet());
+  ASSERT_EQ(r.auto_size.size(), 2u);
+  EXPECT_EQ(r.auto_size[0].iteration, 6);
+  EXPECT_EQ(r.auto_size[1].iteration, 12);
+  EXPECT_GT(r.auto_size[0].bones_after, 4);
+  EXPECT_EQ(r.auto_size[0].sdf_width_after, 32);
+  const Model& m = solver.model();
+  EXPECT_EQ(m.num_bones(), r.auto_size[0].bones_after);
+  if (r.auto_size[0].bones_after == 6) {  // at max_bones: the second step widens
+    EXPECT_TRUE(r.auto_size[1].splits.empty());
+    EXPECT_EQ(m.options().field.sdf_width, 64);
+    EXPECT_EQ(m.options().field.color_width, 32);
+  }
+  EXPECT_EQ(m.sdf_size(), m.field().SdfParameterSize());
+  EXPECT_TRUE(r.stages[0].finite);
+  ExtractOptions extract;
+  extract.grid.resolution = 32;
+  extract.grid.bounds_min = solver.canonical_bounds().min();
+  extract.grid.bounds_max = solver.canonical_bounds().max();
+  EXPECT_GT(ExtractCanonicalMesh(m, extract).NumVertices(), 0);
+}
+
+// Resume across grow steps: interrupted exactly at the first grow batch
+// (the checkpoint precedes the grow), then after both (the checkpoint holds
+// the grown sizes and the remapped Adam moments): bitwise the straight run.
+TEST(Solver, ResumeAcrossAutoSizeGrowthIsBitwiseIdentical) {
+  SolverConfig config = AutoSizeConfig(10);  // grow at batches 3 and 6
+  StageConfig second = config.stages[0];
+  second.name = "second";
+  second.iterations = 2;
+  config.stages.push_back(second);
+  ExpectResumeEqualsStraight(config, {3, 7}, "banmo_resume_autosize_test");
+  // The checkpoint of the finished run has the grown sizes.
+  const std::unique_ptr<Model> model =
+      LoadCheckpoint(::testing::TempDir() + "/banmo_resume_autosize_test/resumed/checkpoint");
+  EXPECT_GT(model->num_bones(), 4);
 }
 
 TEST(Checkpoint, RoundTripAndErrors) {

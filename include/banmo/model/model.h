@@ -38,6 +38,7 @@
 #include "banmo/field/canonical_field.h"
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/se3.h"
+#include "banmo/model/auto_size_options.h"
 
 namespace banmo {
 
@@ -51,6 +52,7 @@ struct ModelOptions {
   // Scene scale s, dataset units per model unit (finite, > 0). Empty = auto:
   // estimated from the data by MakeModelForDataset (optim/scene_scale.h).
   std::optional<double> scene_scale;
+  AutoSizeOptions auto_size;  // automatic growth of B and the MLP widths
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;
@@ -130,6 +132,20 @@ class Model {
   // root_init, bones_t, [pose_code] ([..] only with delta skinning). Names
   // are e.g. "sdf", "video3/intrinsics", "video3/frame12/root_delta".
   void ForEachBlock(const std::function<void(const std::string& name, double* data, int size)>& fn);
+
+  // Size changes (automatic model sizing, optim/auto_size.h). Both move
+  // the blocks they touch (any ceres::Problem holding them must drop them
+  // first) and keep options() in step.
+  //
+  // B becomes num_bones: the rest bones take `bones` (kBoneSize num_bones
+  // values), every frame's bones_t keeps its first min(B, num_bones)
+  // transforms and gets identities after them. Not with delta skinning
+  // (MLP_Delta's output size is B).
+  void SetBones(int num_bones, const std::vector<double>& bones);
+  // New SDF / colour MLP widths with their parameters (sizes of the new
+  // field's blocks). The position encoding keeps its annealing state.
+  void SetFieldWidths(int sdf_width, int color_width, std::vector<double> sdf,
+                      std::vector<double> color);
 
  private:
   ModelOptions options_;

@@ -7,6 +7,9 @@
 //   DIR/model.yaml     resolved solver config (model options inside), frames per
 //                      video, cameras, stage and iteration, scene_scale (the
 //                      model's s; a checkpoint without the key loads with 1)
+//                      and model_size {num_bones, sdf_width, color_width}: the
+//                      model's current sizes, which override the config's
+//                      (automatic sizing, optim/auto_size.h, grows them)
 //   DIR/params.bin     all parameter blocks, little-endian doubles (see .cc), in
 //                      model units (root translations = dataset units / s)
 //   DIR/state.bin      optional solver state (opaque bytes owned by optim/)

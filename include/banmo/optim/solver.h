@@ -15,8 +15,11 @@
 //   alternate Adam on the field MLPs and codes (delta skinning included),
 //             then LM on the small coupled blocks
 //             (root poses, bones, bone transforms) with the fields constant.
-// Checkpoints are atomic, on a schedule and on SIGINT; a resumed run gives
-// the same result as an uninterrupted one with the same seed.
+// With model.auto_size the model grows at fractions of the first stage
+// (optim/auto_size.h): the stage's problem drops its blocks, the model
+// grows, the blocks are added again and the Adam moments follow their
+// entries. Checkpoints are atomic, on a schedule and on SIGINT; a resumed
+// run gives the same result as an uninterrupted one with the same seed.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -30,6 +33,7 @@
 #include "banmo/io/dataset.h"
 #include "banmo/losses/ray.h"
 #include "banmo/model/model.h"
+#include "banmo/optim/auto_size.h"
 #include "banmo/optim/config.h"
 
 namespace banmo {
@@ -98,6 +102,8 @@ struct StageSummary {
 
 struct SolveResult {
   std::vector<StageSummary> stages;
+  // Grow steps of automatic sizing (model.auto_size), in order.
+  std::vector<AutoSizeEvent> auto_size;
   bool interrupted = false;  // stopped by SIGINT or stop_after_batches (checkpoint written)
 };
 
