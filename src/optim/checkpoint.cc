@@ -13,6 +13,7 @@
 
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
+#include "banmo/util/format.h"
 
 namespace banmo {
 namespace {
@@ -20,16 +21,6 @@ namespace {
 // params.bin: "BANMOPB1", uint64 count, count little-endian doubles in
 // Model::ForEachBlock order.
 constexpr char kMagic[8] = {'B', 'A', 'N', 'M', 'O', 'P', 'B', '1'};
-
-// Shortest decimal that reads back to the same double.
-std::string FormatDouble(double v) {
-  char buf[64];
-  for (int precision = 15; precision <= 17; ++precision) {
-    std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
-}
 
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

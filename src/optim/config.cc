@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "banmo/util/error.h"
+#include "banmo/util/format.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -439,16 +440,6 @@ int LineOfKey(std::string key, const std::map<std::string, int>& lines) {
 }
 
 // ---- Writing. ----
-
-// Shortest decimal that reads back to the same double.
-std::string FormatDouble(double v) {
-  char buf[64];
-  for (int precision = 15; precision <= 17; ++precision) {
-    std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
-}
 
 class FieldWriter {
  public:
