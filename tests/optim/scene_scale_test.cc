@@ -15,6 +15,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "banmo/extract/extract.h"
@@ -226,6 +227,29 @@ TEST(Checkpoint, KeepsTheSceneScaleAndOldCheckpointsLoadWithOne) {
     const std::string message = e.what();
     EXPECT_NE(message.find("model.yaml"), std::string::npos) << message;
     EXPECT_NE(message.find("scene_scale"), std::string::npos) << message;
+  }
+
+  // A malformed or invalid model_size (automatic sizing's key) names the
+  // file and the key, and what is wrong with it.
+  const size_t sizes = yaml.find("model_size: {num_bones: ");
+  ASSERT_NE(sizes, std::string::npos) << yaml;
+  const size_t value = sizes + std::string("model_size: {num_bones: ").size();
+  const size_t value_end = yaml.find(',', value);
+  ASSERT_NE(value_end, std::string::npos) << yaml;
+  for (const auto& [text, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"many", "malformed key 'model_size'"}, {"-3", "model.num_bones"}}) {
+    std::string broken = yaml;
+    broken.replace(value, value_end - value, text);
+    std::ofstream(dir + "/model.yaml") << broken;
+    try {
+      LoadCheckpoint(dir);
+      ADD_FAILURE() << "expected InputError for num_bones " << text;
+    } catch (const InputError& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("model.yaml"), std::string::npos) << message;
+      EXPECT_NE(message.find("model_size"), std::string::npos) << message;
+      EXPECT_NE(message.find(expected), std::string::npos) << message;
+    }
   }
   fs::remove_all(dir);
 }
