@@ -110,9 +110,17 @@ int RunEval(int argc, char** argv) {
   const std::vector<std::string> pred_files = ResolveMeshPaths(pred_path, "--pred");
   const std::vector<std::string> gt_files = ResolveMeshPaths(gt_path, "--gt");
   if (pred_files.size() != gt_files.size()) {
+    // A common slip: `banmo solve` writes the per-frame meshes to
+    // OUT/meshes/frames/, beside the canonical and rest meshes in OUT/meshes/.
+    std::string hint;
+    std::error_code ec;
+    const std::filesystem::path frames = std::filesystem::path(pred_path) / "frames";
+    if (std::filesystem::is_directory(frames, ec)) {
+      hint = "; did you mean --pred " + frames.string() + "?";
+    }
     ThrowInputError("frame counts differ: --pred ", pred_path, " has ", pred_files.size(),
                     " meshes but --gt ", gt_path, " has ", gt_files.size(),
-                    " (expected one prediction per ground-truth frame)");
+                    " (expected one prediction per ground-truth frame)", hint);
   }
   std::fprintf(stderr, "banmo eval: %zu frame(s), protocol %s\n", gt_files.size(),
                protocol.c_str());

@@ -97,6 +97,20 @@ TEST_F(EvalCli, MismatchedFrameCounts) {
   const CommandResult r = RunEval("--pred " + Path("pred/frame_0.obj") + " --gt " + Path("gt"));
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.out.find("frame counts differ"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("did you mean"), std::string::npos) << r.out;
+}
+
+// `banmo solve` writes per-frame meshes to OUT/meshes/frames/; passing
+// OUT/meshes instead gets a hint.
+TEST_F(EvalCli, MismatchHintsAtFramesFolder) {
+  const fs::path meshes = root_ / "solve_out" / "meshes";
+  fs::create_directories(meshes / "frames");
+  fs::copy_file(root_ / "pred" / "frame_0.obj", meshes / "canonical.obj");
+  const CommandResult r = RunEval("--pred " + meshes.string() + " --gt " + Path("gt"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("did you mean --pred " + (meshes / "frames").string() + "?"),
+            std::string::npos)
+      << r.out;
 }
 
 TEST_F(EvalCli, EmptyMesh) {

@@ -22,6 +22,7 @@
 #include "banmo/synth/rig_library.h"
 #include "banmo/synth/scene.h"
 #include "../common/run_banmo.h"
+#include "../common/shared_assets.h"
 
 namespace banmo {
 namespace {
@@ -112,7 +113,8 @@ class FoxSequence : public ::testing::Test {
   static void SetUpTestSuite() {
     tmp_ = new testing::TempDir;
     for (const char* dir : {"gt", "pred", "noise_only"}) fs::create_directories(Path(dir));
-    const synth::Rig rig = synth::LoadRig(BANMO_SHARED_DIR "/data/gltf/Fox/Fox.glb");
+    if (!testing::SharedAssetExists(FoxPath())) return;  // each test fails with the message
+    const synth::Rig rig = synth::LoadRig(FoxPath());
     synth::SynthOptions options;
     options.num_videos = kVideos;
     options.frames_per_video = kFramesPerVideo;
@@ -138,6 +140,9 @@ class FoxSequence : public ::testing::Test {
     tmp_ = nullptr;
   }
   static std::string Path(const std::string& rel) { return tmp_->path() + "/" + rel; }
+  static std::string FoxPath() { return testing::SharedAsset("data/gltf/Fox/Fox.glb"); }
+
+  void SetUp() override { ASSERT_TRUE(testing::SharedAssetExists(FoxPath())); }
 
   // Runs `banmo eval --pred <pred> --gt gt` with `extra` flags into
   // out_<tag>/ and checks what every run must give; returns summary.json.

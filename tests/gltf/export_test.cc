@@ -20,6 +20,7 @@
 #include "banmo/synth/gltf_rig.h"
 #include "banmo/synth/rig.h"
 #include "banmo/util/error.h"
+#include "../common/shared_assets.h"
 #include "gltf_test_util.h"
 
 namespace banmo {
@@ -473,8 +474,8 @@ TEST_F(GltfValidate, NodeCycle) {
 // The shared Fox glTF (a third-party file, uint8-normalised weights in some
 // exports) passes with a tolerance suited to its encoding.
 TEST(GltfValidateShared, FoxPasses) {
-  const std::string path = std::string(BANMO_SHARED_DIR) + "/data/gltf/Fox/Fox.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << path << " not found";
+  const std::string path = testing::SharedAsset("data/gltf/Fox/Fox.glb");
+  ASSERT_TRUE(testing::SharedAssetExists(path));
   tinygltf::Model fox;
   ReadGltf(path, &fox);
   GltfValidationOptions o;
