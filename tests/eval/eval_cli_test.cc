@@ -7,9 +7,9 @@
 #include <limits>
 #include <string>
 
+#include "../common/run_banmo.h"
 #include "../io/test_dataset_util.h"
 #include "banmo/geometry/mesh_io.h"
-#include "../common/run_banmo.h"
 #include "test_shapes.h"
 
 namespace banmo {

@@ -17,12 +17,12 @@
 #include <string>
 #include <vector>
 
+#include "../common/run_banmo.h"
+#include "../common/shared_assets.h"
 #include "../io/test_dataset_util.h"
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/synth/rig_library.h"
 #include "banmo/synth/scene.h"
-#include "../common/run_banmo.h"
-#include "../common/shared_assets.h"
 
 namespace banmo {
 namespace {
