@@ -118,6 +118,12 @@ def final_full(run):
     return rows[-1] if rows else None
 
 
+def no_surface(row):
+    """True when the row's extracted mesh is empty: the SDF has no zero level
+    set (a collapse, not a numerical failure, so it needs its own flag)."""
+    return row is not None and num(row["mesh_vertices"]) == 0
+
+
 def nonfinite_row(run):
     rows = [r for r in run["rows"] if r["kind"] == "nonfinite"]
     return rows[0] if rows else None
@@ -304,7 +310,8 @@ def main():
             r = finals[n]
             full = final_full(compare[n])
             bad = nonfinite_row(compare[n])
-            name = n + (" (NON-FINITE)" if bad else "")
+            name = n + (" (NON-FINITE)" if bad else "") + \
+                (" (NO SURFACE)" if no_surface(full or r) else "")
             out.append(
                 f"| {name} | {', '.join(axis_of.get(n, []))} | {r['total_batches']} | "
                 f"{fmt(num(r['solve_seconds']), 1)} | {fmt(num(r['cpu_seconds']), 1)} | "
@@ -364,11 +371,12 @@ def main():
 
     # Stability table.
     if stability:
-        out.append("Stability suite (stability.txt; every run must end without NaN/Inf):")
+        out.append("Stability suite (stability.txt; every run must end without NaN/Inf; "
+                   "surface: whether the final mesh has any vertices):")
         out.append("")
-        out.append("| case | scene | overrides | batches | solve s | finite | CD cm | F@2 | "
-                   "CD full-res | F@2 full-res |")
-        out.append("| --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: |")
+        out.append("| case | scene | overrides | batches | solve s | finite | surface | CD cm | "
+                   "F@2 | CD full-res | F@2 full-res |")
+        out.append("| --- | --- | --- | ---: | ---: | --- | --- | ---: | ---: | ---: | ---: |")
         overrides = {}
         with open(os.path.join(a.here, "stability.txt")) as f:
             for line in f:
@@ -389,11 +397,12 @@ def main():
                 finite = "**run did not finish** (see log.txt)"
             else:
                 finite = "yes"
+            surface = "n/a" if bad else ("**none**" if no_surface(full or r) else "yes")
             ov = overrides.get(n, "")
             out.append(
                 f"| {n} | {last['scene']} | {('`' + ov + '`') if ov else ''} | "
                 f"{last['total_batches']} | {fmt(num(last['solve_seconds']), 1)} | {finite} | "
-                f"{fmt(num(r['chamfer_cm'])) if r and not bad else 'n/a'} | "
+                f"{surface} | {fmt(num(r['chamfer_cm'])) if r and not bad else 'n/a'} | "
                 f"{fmt(num(r['fscore_2']), 1) if r and not bad else 'n/a'} | "
                 f"{fmt(num(full['chamfer_cm'])) if full else 'n/a'} | "
                 f"{fmt(num(full['fscore_2']), 1) if full else 'n/a'} |")

@@ -18,7 +18,7 @@ COLUMNS = ["config", "scene", "kind", "stage", "stage_name", "iteration", "total
            "mesh_vertices", "eval_frames", "chamfer_cm", "fscore_1", "fscore_2", "fscore_5"]
 
 
-def write_run(work, group, name, scene, points, done):
+def write_run(work, group, name, scene, points, done, vertices=100):
     d = os.path.join(work, group, name)
     os.makedirs(d)
     with open(os.path.join(d, "trace.csv"), "w", newline="") as f:
@@ -29,7 +29,8 @@ def write_run(work, group, name, scene, points, done):
             row.update(config=name, scene=scene, kind="trace", stage=str(0 if i else -1),
                        stage_name="all" if i else "", iteration=str(10 * i),
                        total_batches=str(10 * i), solve_seconds=str(sec), params_finite="1",
-                       losses_finite="1", nonfinite_what="", chamfer_cm=str(cd),
+                       losses_finite="1", nonfinite_what="", mesh_vertices=str(vertices),
+                       chamfer_cm=str(cd),
                        fscore_2=str(100 - cd))
             w.writerow(row)
     if done:
@@ -91,6 +92,32 @@ class RestoreTest(unittest.TestCase):
                                   "--work", work2, "--results", res], check=True,
                                  capture_output=True, text=True).stdout
             self.assertEqual(out, "")
+
+    def test_empty_mesh_is_flagged(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            work, here = os.path.join(tmp, "work"), os.path.join(tmp, "here")
+            os.makedirs(here)
+            with open(os.path.join(here, "configs.txt"), "w") as f:
+                f.write("all step_rule adam\nall step_rule alternate x=1\n")
+            with open(os.path.join(here, "stability.txt"), "w") as f:
+                f.write("all ok quad\nall collapsed quad\n")
+            readme = os.path.join(tmp, "README.md")
+            with open(readme, "w") as f:
+                f.write("# x\n<!-- BEGIN solver-tables -->\n<!-- END solver-tables -->\n")
+            write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20)], True)
+            write_run(work, "compare", "alternate", "quad", [(0, 30), (5, float("nan"))], True, 0)
+            write_run(work, "stability", "ok", "quad", [(0, 30), (4, 25)], True)
+            write_run(work, "stability", "collapsed", "quad", [(0, 30), (4, float("nan"))], True, 0)
+            self.run_summarize("--mode", "full", "--work", work, "--here", here,
+                               "--results", os.path.join(tmp, "res"), "--readme", readme,
+                               "--run-seconds", "1", "--command", "test")
+            with open(readme) as f:
+                lines = f.read().splitlines()
+            row = {l.split("|")[1].strip(): l for l in lines if l.startswith("| ")}
+            self.assertIn("alternate (NO SURFACE)", row)
+            self.assertIn("adam", row)
+            self.assertEqual(row["ok"].split("|")[7].strip(), "yes")
+            self.assertEqual(row["collapsed"].split("|")[7].strip(), "**none**")
 
     def test_restore_without_results_is_a_no_op(self):
         with tempfile.TemporaryDirectory() as tmp:
