@@ -4,7 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <limits>
+#include <set>
+#include <sstream>
 
 #include "banmo/optim/solver.h"
 #include "banmo/util/error.h"
@@ -94,6 +98,102 @@ TEST(TraceCsv, RowHasOneFieldPerHeaderColumn) {
   EXPECT_EQ(count(header), count(line));
   EXPECT_NE(line.find(",0.75,"), std::string::npos) << line;  // loss_total
   EXPECT_NE(line.find(",nan,"), std::string::npos) << line;
+}
+
+// The harness's tables (configs.txt, stability.txt, scenes.txt): every named
+// configuration and stability case applies to its mode's base config (as
+// run.sh passes it: full = problems/default.yaml, quick = problems/tiny.yaml
+// with the quick budget), names are unique per mode and every stability
+// scene exists. A typo would otherwise surface only when run.sh reaches it,
+// an hour into a full run.
+struct TableLine {
+  std::string modes;
+  std::vector<std::string> columns;  // the rest of the line, split on blanks
+  int line = 0;
+};
+
+std::vector<TableLine> ReadTable(const std::string& name) {
+  const std::string path = std::string(BANMO_SOURCE_DIR) + "/benchmarks/solver/" + name;
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::vector<TableLine> out;
+  int number = 0;
+  for (std::string text; std::getline(in, text);) {
+    ++number;
+    std::istringstream words(text);
+    TableLine line;
+    line.line = number;
+    if (!(words >> line.modes) || line.modes[0] == '#') continue;
+    for (std::string w; words >> w;) line.columns.push_back(w);
+    out.push_back(line);
+  }
+  return out;
+}
+
+bool InMode(const std::string& modes, const std::string& mode) {
+  return modes == "all" || modes == mode;
+}
+
+std::string ReadBase(const std::string& mode) {
+  const std::string path = std::string(BANMO_SOURCE_DIR) + "/problems/" +
+                           (mode == "full" ? "default.yaml" : "tiny.yaml");
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// run.sh's quick budget overrides, before the configuration's own.
+std::vector<std::string> BudgetOverrides(const std::string& mode) {
+  if (mode == "full") return {};
+  return {"stages[0].iterations=40", "stages[1].iterations=5", "stages[2].iterations=15"};
+}
+
+TEST(HarnessTables, EveryConfigurationParsesOnItsBase) {
+  for (const std::string mode : {"full", "quick"}) {
+    const std::string base = ReadBase(mode);
+    ASSERT_FALSE(base.empty()) << mode;
+    std::set<std::string> names;
+    int count = 0;
+    for (const TableLine& l : ReadTable("configs.txt")) {
+      if (!InMode(l.modes, mode)) continue;
+      ASSERT_GE(l.columns.size(), 2u) << "configs.txt:" << l.line << ": expected axes and name";
+      const std::string& name = l.columns[1];
+      EXPECT_TRUE(names.insert(name).second)
+          << "configs.txt:" << l.line << ": " << name << " twice in mode " << mode;
+      std::vector<std::string> overrides = BudgetOverrides(mode);
+      overrides.insert(overrides.end(), l.columns.begin() + 2, l.columns.end());
+      EXPECT_NO_THROW(ParseConfigWithOverrides(base, overrides, "configs.txt " + name))
+          << "configs.txt:" << l.line << " (" << mode << ")";
+      ++count;
+    }
+    EXPECT_GE(count, 10) << mode;
+    EXPECT_TRUE(names.count("adam")) << "the reference configuration, mode " << mode;
+  }
+}
+
+TEST(HarnessTables, EveryStabilityCaseParsesAndHasItsScene) {
+  for (const std::string mode : {"full", "quick"}) {
+    const std::string base = ReadBase(mode);
+    std::set<std::string> scenes;
+    for (const TableLine& l : ReadTable("scenes.txt")) {
+      if (InMode(l.modes, mode) && !l.columns.empty()) scenes.insert(l.columns[0]);
+    }
+    std::set<std::string> names;
+    int count = 0;
+    for (const TableLine& l : ReadTable("stability.txt")) {
+      if (!InMode(l.modes, mode)) continue;
+      ASSERT_GE(l.columns.size(), 2u) << "stability.txt:" << l.line << ": expected name and scene";
+      EXPECT_TRUE(names.insert(l.columns[0]).second) << "stability.txt:" << l.line;
+      EXPECT_TRUE(scenes.count(l.columns[1]))
+          << "stability.txt:" << l.line << ": scene " << l.columns[1] << " not in scenes.txt ("
+          << mode << ")";
+      std::vector<std::string> overrides = BudgetOverrides(mode);
+      overrides.insert(overrides.end(), l.columns.begin() + 2, l.columns.end());
+      EXPECT_NO_THROW(ParseConfigWithOverrides(base, overrides, "stability.txt"))
+          << "stability.txt:" << l.line << " (" << mode << ")";
+      ++count;
+    }
+    EXPECT_EQ(count, 12) << mode;  // the hard cases, one run each
+  }
 }
 
 }  // namespace
