@@ -38,6 +38,21 @@ def write_run(work, group, name, scene, points, done, vertices=100):
             f.write(f"batches {10 * (len(points) - 1)}\nsolve_seconds {points[-1][0]}\n")
 
 
+def write_tables(tmp, configs, stability):
+    """tmp/here/{configs,stability}.txt and a README with the empty block;
+    returns (here, readme)."""
+    here = os.path.join(tmp, "here")
+    os.makedirs(here)
+    with open(os.path.join(here, "configs.txt"), "w") as f:
+        f.write(configs)
+    with open(os.path.join(here, "stability.txt"), "w") as f:
+        f.write(stability)
+    readme = os.path.join(tmp, "README.md")
+    with open(readme, "w") as f:
+        f.write("# x\n<!-- BEGIN solver-tables -->\n<!-- END solver-tables -->\n")
+    return here, readme
+
+
 class RestoreTest(unittest.TestCase):
     def run_summarize(self, *args):
         subprocess.run([sys.executable, SUMMARIZE, *args], check=True,
@@ -46,15 +61,9 @@ class RestoreTest(unittest.TestCase):
     def test_round_trip(self):
         with tempfile.TemporaryDirectory() as tmp:
             work, res = os.path.join(tmp, "work"), os.path.join(tmp, "res")
-            here = os.path.join(tmp, "here")
-            os.makedirs(here)
-            with open(os.path.join(here, "configs.txt"), "w") as f:
-                f.write("all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n")
-            with open(os.path.join(here, "stability.txt"), "w") as f:
-                f.write("all noise50 quad_n\n")
-            readme = os.path.join(tmp, "README.md")
-            with open(readme, "w") as f:
-                f.write("# x\n<!-- BEGIN solver-tables -->\n<!-- END solver-tables -->\n")
+            here, readme = write_tables(
+                tmp, "all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n",
+                "all noise50 quad_n\n")
             write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20), (10, 15)], True)
             write_run(work, "compare", "lm", "quad", [(0, 30), (8, 14)], True)
             write_run(work, "stability", "noise50", "quad_n", [(0, 30), (4, 25)], False)
@@ -95,15 +104,10 @@ class RestoreTest(unittest.TestCase):
 
     def test_empty_mesh_is_flagged(self):
         with tempfile.TemporaryDirectory() as tmp:
-            work, here = os.path.join(tmp, "work"), os.path.join(tmp, "here")
-            os.makedirs(here)
-            with open(os.path.join(here, "configs.txt"), "w") as f:
-                f.write("all step_rule adam\nall step_rule alternate x=1\n")
-            with open(os.path.join(here, "stability.txt"), "w") as f:
-                f.write("all ok quad\nall collapsed quad\n")
-            readme = os.path.join(tmp, "README.md")
-            with open(readme, "w") as f:
-                f.write("# x\n<!-- BEGIN solver-tables -->\n<!-- END solver-tables -->\n")
+            work = os.path.join(tmp, "work")
+            here, readme = write_tables(
+                tmp, "all step_rule adam\nall step_rule alternate x=1\n",
+                "all ok quad\nall collapsed quad\n")
             write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20)], True)
             write_run(work, "compare", "alternate", "quad", [(0, 30), (5, float("nan"))], True, 0)
             write_run(work, "stability", "ok", "quad", [(0, 30), (4, 25)], True)
