@@ -123,6 +123,23 @@ class RestoreTest(unittest.TestCase):
             self.assertEqual(row["ok"].split("|")[7].strip(), "yes")
             self.assertEqual(row["collapsed"].split("|")[7].strip(), "**none**")
 
+    def test_step_rule_ratio(self):
+        # Adam ends at F@2 85 % after 10 s. lm reaching it at 8 s gives 0.80;
+        # lm ending below it after 12 s gives only the lower bound 12 / 10.
+        for lm_points, expected in (([(0, 30), (8, 14)], "(lm) / Adam = 0.80**"),
+                                    ([(0, 30), (12, 20)], "/ Adam > 1.20** (a lower bound")):
+            with tempfile.TemporaryDirectory() as tmp:
+                work = os.path.join(tmp, "work")
+                here, readme = write_tables(
+                    tmp, "all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n", "")
+                write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20), (10, 15)], True)
+                write_run(work, "compare", "lm", "quad", lm_points, True)
+                self.run_summarize("--mode", "full", "--work", work, "--here", here,
+                                   "--results", os.path.join(tmp, "res"), "--readme", readme,
+                                   "--run-seconds", "1", "--command", "test")
+                with open(readme) as f:
+                    self.assertIn(expected, f.read())
+
     def test_restore_without_results_is_a_no_op(self):
         with tempfile.TemporaryDirectory() as tmp:
             self.run_summarize("--restore", "--mode", "full", "--work",
