@@ -138,7 +138,46 @@ class RestoreTest(unittest.TestCase):
                                    "--results", os.path.join(tmp, "res"), "--readme", readme,
                                    "--run-seconds", "1", "--command", "test")
                 with open(readme) as f:
-                    self.assertIn(expected, f.read())
+                    text = f.read()
+                self.assertIn(expected, text)
+                # Adam reaches its final F@2 only at its last point here.
+                self.assertNotIn("Adam itself first reached", text)
+
+    def test_step_rule_ratio_against_adams_first_time(self):
+        # Adam passes its final F@2 (85 %) at 4 s, dips, and ends at 85 after
+        # 10 s; lm reaches 85 at 8 s: 0.80 against the end, 2.00 against 4 s.
+        with tempfile.TemporaryDirectory() as tmp:
+            work = os.path.join(tmp, "work")
+            here, readme = write_tables(
+                tmp, "all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n", "")
+            write_run(work, "compare", "adam", "quad", [(0, 30), (4, 14), (7, 18), (10, 15)], True)
+            write_run(work, "compare", "lm", "quad", [(0, 30), (8, 14)], True)
+            self.run_summarize("--mode", "full", "--work", work, "--here", here,
+                               "--results", os.path.join(tmp, "res"), "--readme", readme,
+                               "--run-seconds", "1", "--command", "test")
+            with open(readme) as f:
+                text = f.read()
+            self.assertIn("(lm) / Adam = 0.80**", text)
+            self.assertIn("first reached the target after 4.0 s (10 batches): against that "
+                          "time the ratio is 2.00.", text)
+
+    def test_fox_runs_get_their_ratio_and_plot(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            work = os.path.join(tmp, "work")
+            here, readme = write_tables(tmp, "all step_rule adam\n", "")
+            write_run(work, "compare", "adam", "quad", [(0, 30), (10, 15)], True)
+            write_run(work, "fox", "fox_adam", "fox", [(0, 40), (30, 20)], True)
+            write_run(work, "fox", "fox_lm", "fox", [(0, 40), (45, 19)], True)
+            res = os.path.join(tmp, "res")
+            self.run_summarize("--mode", "full", "--work", work, "--here", here,
+                               "--results", res, "--readme", readme,
+                               "--run-seconds", "1", "--command", "test")
+            with open(readme) as f:
+                text = f.read()
+            self.assertIn("Fox, 30-minute budget: Adam's final F@2 = 80.0 % after 30.0 s", text)
+            self.assertIn("**Ratio best Ceres rule (lm) / Adam = 1.50**", text)
+            self.assertIn("- fox_step_rule: [", text)
+            self.assertTrue(os.path.isfile(os.path.join(res, "plots", "full_fox_step_rule.png")))
 
     def test_restore_without_results_is_a_no_op(self):
         with tempfile.TemporaryDirectory() as tmp:
