@@ -179,6 +179,29 @@ class RestoreTest(unittest.TestCase):
             self.assertIn("- fox_step_rule: [", text)
             self.assertTrue(os.path.isfile(os.path.join(res, "plots", "full_fox_step_rule.png")))
 
+    def test_quick_block_leaves_the_full_block_alone(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            work = os.path.join(tmp, "work")
+            here, readme = write_tables(tmp, "all step_rule adam\n", "")
+            with open(readme, "w") as f:
+                f.write("# x\n<!-- BEGIN solver-tables -->\nFULL RESULTS\n"
+                        "<!-- END solver-tables -->\ntail\n")
+            write_run(work, "compare", "adam", "quad", [(0, 30), (10, 15)], True)
+            args = ["--mode", "quick", "--work", work, "--here", here, "--results",
+                    os.path.join(tmp, "res"), "--readme", readme, "--run-seconds", "1"]
+            for command in ("first", "second"):
+                self.run_summarize(*args, "--command", command)
+            with open(readme) as f:
+                text = f.read()
+            self.assertIn("<!-- BEGIN solver-tables -->\nFULL RESULTS\n"
+                          "<!-- END solver-tables -->\ntail\n", text)
+            # Appended once, then rewritten in place.
+            self.assertEqual(text.count("<!-- BEGIN solver-tables-quick -->"), 1)
+            self.assertEqual(text.count("<!-- END solver-tables-quick -->"), 1)
+            self.assertIn("Command: `second`", text)
+            self.assertNotIn("Command: `first`", text)
+            self.assertIn("QUICK SMOKE RUN", text)
+
     def test_restore_without_results_is_a_no_op(self):
         with tempfile.TemporaryDirectory() as tmp:
             self.run_summarize("--restore", "--mode", "full", "--work",
