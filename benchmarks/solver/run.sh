@@ -25,6 +25,7 @@ src="${BANMO_SOURCE_DIR:-$root}"
 build="${BANMO_BUILD_DIR:-$root/build}"
 out_root="${BANMO_BENCH_OUT:-$root/runs/bench}"
 
+args_given="$*"
 mode=full
 fox=0
 resume=0
@@ -170,5 +171,5 @@ echo "[summary] plots, CSV and tables"
 python3 "$here/summarize.py" --mode "$mode" --work "$work" --here "$here" \
   --results "${BANMO_BENCH_RESULTS:-$here}" --readme "${BANMO_BENCH_README:-$root/benchmarks/README.md}" \
   --run-seconds "$runs_seconds" \
-  --command "bash benchmarks/solver/run.sh $( [[ $mode == quick ]] && echo --quick )$( [[ $fox == 1 ]] && echo ' --fox')"
+  --command "bash benchmarks/solver/run.sh${args_given:+ $args_given}"
 echo "[done] run.sh ($mode) in $(( $(date +%s) - start )) s"
