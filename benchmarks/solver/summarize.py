@@ -18,13 +18,13 @@ import subprocess
 import sys
 import tempfile
 
+CERES_RULES = ["lm", "lm_schur", "alternate"]
+
+
 def markers(mode):
     """The (BEGIN, END) comment pair that delimits mode's README block."""
     suffix = "" if mode == "full" else f"-{mode}"
     return f"<!-- BEGIN solver-tables{suffix} -->", f"<!-- END solver-tables{suffix} -->"
-
-
-CERES_RULES = ["lm", "lm_schur", "alternate"]
 
 
 def num(text):
