@@ -78,9 +78,9 @@ int RunSolve(int argc, char** argv) {
   load.load_features = false;
   load.load_flow = false;
   for (const StageConfig& s : config.stages) {
-    load.load_features =
-        load.load_features || s.losses.feature_match.weight > 0 || s.losses.cycle_2d.weight > 0;
-    load.load_flow = load.load_flow || s.losses.flow.weight > 0;
+    load.load_features = load.load_features || s.losses[LossTerm::kFeatureMatch].weight > 0 ||
+                         s.losses[LossTerm::kCycle2d].weight > 0;
+    load.load_flow = load.load_flow || s.losses[LossTerm::kFlow].weight > 0;
   }
   Timer timer;
   const Dataset dataset = LoadDataset(data_dir, load);

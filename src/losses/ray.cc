@@ -1,78 +1,50 @@
 #include "banmo/losses/ray.h"
 
+#include "banmo/losses/bone_inside_loss.h"
+#include "banmo/losses/eikonal_loss.h"
+#include "banmo/losses/pose_smoothness_loss.h"
 #include "banmo/losses/ray_functors.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
 
-const char* LossTermName(LossTerm term) {
-  switch (term) {
-    case LossTerm::kRgb:
-      return "rgb";
-    case LossTerm::kSilhouette:
-      return "silhouette";
-    case LossTerm::kFlow:
-      return "flow";
-    case LossTerm::kFeatureMatch:
-      return "feature_match";
-    case LossTerm::kCycle2d:
-      return "cycle_2d";
-    case LossTerm::kCycle3d:
-      return "cycle_3d";
-  }
-  return "unknown";
+// The table's residual counts are the functors' (one place to read them,
+// checked here where the functors are known).
+static_assert(LossInfo(LossTerm::kRgb).residuals == RgbLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kSilhouette).residuals == SilhouetteLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kFlow).residuals == FlowLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kFeatureMatch).residuals == FeatureMatchLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kCycle2d).residuals == Cycle2dLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kCycle3d).residuals == Cycle3dLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kEikonal).residuals == EikonalLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kBoneInside).residuals == BoneInsideLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kPoseSmoothness).residuals == PoseSmoothnessLoss::kNumResiduals);
+
+RayLossWeights::RayLossWeights() {
+  for (int t = 0; t < kNumRayTerms; ++t) w_[t] = kLossTable[t].default_weight;
 }
 
-int LossTermResiduals(LossTerm term, int num_samples) {
-  switch (term) {
-    case LossTerm::kRgb:
-      return RgbLoss::kNumResiduals;
-    case LossTerm::kSilhouette:
-      return SilhouetteLoss::kNumResiduals;
-    case LossTerm::kFlow:
-      return FlowLoss::kNumResiduals;
-    case LossTerm::kFeatureMatch:
-      return FeatureMatchLoss::kNumResiduals;
-    case LossTerm::kCycle2d:
-      return Cycle2dLoss::kNumResiduals;
-    case LossTerm::kCycle3d:
-      return Cycle3dLoss::kNumResiduals * num_samples;
-  }
-  return 0;
-}
-
-double RayLossWeights::Weight(LossTerm term) const {
-  switch (term) {
-    case LossTerm::kRgb:
-      return rgb;
-    case LossTerm::kSilhouette:
-      return silhouette;
-    case LossTerm::kFlow:
-      return flow;
-    case LossTerm::kFeatureMatch:
-      return feature_match;
-    case LossTerm::kCycle2d:
-      return cycle_2d;
-    case LossTerm::kCycle3d:
-      return cycle_3d;
-  }
-  return 0.0;
+RayLossWeights RayLossWeights::Only(std::initializer_list<LossTerm> enabled) {
+  RayLossWeights w(std::array<double, kNumRayTerms>{});
+  for (LossTerm term : enabled) w[term] = 1.0;
+  return w;
 }
 
 bool Ray::HasTerm(LossTerm term, const RayLossWeights& weights) const {
-  if (!(weights.Weight(term) > 0.0) || NumSamples() == 0) return false;
+  if (!IsRayTerm(term) || !(weights[term] > 0.0) || NumSamples() == 0) return false;
   const bool object = mask >= 0.5;
-  switch (term) {
-    case LossTerm::kRgb:
-      return object;
-    case LossTerm::kSilhouette:
+  switch (LossInfo(term).rays) {
+    case RaySelect::kNotPerRay:
+      return false;
+    case RaySelect::kKnownMask:
       return mask >= 0.0;
-    case LossTerm::kFlow:
+    case RaySelect::kObject:
+      return object;
+    case RaySelect::kObjectWithFlow:
       return object && has_flow && partner_frame >= 0 && partner_frame != frame;
-    case LossTerm::kFeatureMatch:
-    case LossTerm::kCycle2d:
+    case RaySelect::kObjectWithFeature:
       return object && has_feature;
-    case LossTerm::kCycle3d:
+    case RaySelect::kAll:
       return true;
   }
   return false;

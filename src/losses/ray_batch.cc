@@ -102,11 +102,10 @@ const char* RayBlockName(RayBlock block) {
 void RayBatchOptions::Check() const {
   if (match_top_k < 1) ThrowInputError("match_top_k: expected >= 1, got ", match_top_k);
   if (!matcher.Check()) ThrowInputError("matcher: invalid embedding matcher options");
-  for (int t = 0; t < kNumLossTerms; ++t) {
-    const double w = weights.Weight(static_cast<LossTerm>(t));
+  for (int t = 0; t < kNumRayTerms; ++t) {
+    const double w = weights[RayTerm(t)];
     if (!(w >= 0.0) || !std::isfinite(w)) {
-      ThrowInputError("weights.", LossTermName(static_cast<LossTerm>(t)),
-                      ": expected a finite weight >= 0");
+      ThrowInputError("weights.", LossTermName(RayTerm(t)), ": expected a finite weight >= 0");
     }
   }
 }
@@ -270,39 +269,13 @@ RayParameters RayBatch::ModelParameters(const Ray& ray) const {
 }
 
 std::vector<RayBlock> RayBatch::TermBlocks(int index, LossTerm term) const {
-  const Ray& ray = rays_[index];
-  const RayParameters p = ModelParameters(ray);
-  std::vector<RayBlock> wanted;
-  switch (term) {
-    case LossTerm::kRgb:
-      wanted = {kBlockSdf,   kBlockColor,  kBlockLogBeta,    kBlockAppearance, kBlockRoot,
-                kBlockBones, kBlockBonesT, kBlockIntrinsics, kBlockDeltaSkin,  kBlockPoseCode};
-      break;
-    case LossTerm::kSilhouette:
-      wanted = {kBlockSdf,    kBlockLogBeta,    kBlockRoot,      kBlockBones,
-                kBlockBonesT, kBlockIntrinsics, kBlockDeltaSkin, kBlockPoseCode};
-      break;
-    case LossTerm::kFlow:
-      wanted = {kBlockSdf,       kBlockLogBeta,      kBlockRoot,        kBlockBones,
-                kBlockBonesT,    kBlockIntrinsics,   kBlockPartnerRoot, kBlockPartnerBonesT,
-                kBlockDeltaSkin, kBlockRestPoseCode, kBlockPoseCode};
-      break;
-    case LossTerm::kFeatureMatch:
-      wanted = {kBlockSdf,    kBlockEmbedding,  kBlockLogBeta,   kBlockRoot,    kBlockBones,
-                kBlockBonesT, kBlockIntrinsics, kBlockDeltaSkin, kBlockPoseCode};
-      break;
-    case LossTerm::kCycle2d:
-      wanted = {kBlockEmbedding,  kBlockRoot,      kBlockBones,       kBlockBonesT,
-                kBlockIntrinsics, kBlockDeltaSkin, kBlockRestPoseCode};
-      break;
-    case LossTerm::kCycle3d:
-      wanted = {kBlockRoot,      kBlockBones,        kBlockBonesT,  kBlockIntrinsics,
-                kBlockDeltaSkin, kBlockRestPoseCode, kBlockPoseCode};
-      break;
-  }
+  CHECK(IsRayTerm(term)) << LossTermName(term) << " is not a per-ray term";
+  const RayParameters p = ModelParameters(rays_[index]);
+  const RayBlockMask wanted = LossInfo(term).blocks;
   std::vector<RayBlock> present;
-  for (RayBlock b : wanted) {
-    if (p.block[b] != nullptr) present.push_back(b);
+  for (int b = 0; b < kNumRayBlocks; ++b) {
+    const RayBlock block = static_cast<RayBlock>(b);
+    if (Contains(wanted, block) && p.block[b] != nullptr) present.push_back(block);
   }
   return present;
 }
@@ -641,9 +614,9 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
       {
         int row = 0;
         for (int t = 0; t < kNumRenderTerms; ++t) {
-          if (render.active(static_cast<LossTerm>(t))) {
+          if (render.active(RayTerm(t))) {
             ev.term_row[t] = row;
-            row += LossTermResiduals(static_cast<LossTerm>(t), n);
+            row += LossTermResiduals(RayTerm(t), n);
           }
         }
         if (cycle3d) ev.term_row[static_cast<int>(LossTerm::kCycle3d)] = R;
@@ -730,7 +703,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
         for (int t = 0; t < kNumRenderTerms; ++t) {
           const int row = ev.term_row[t];
           if (row < 0) continue;
-          const int rows = LossTermResiduals(static_cast<LossTerm>(t), n);
+          const int rows = LossTermResiduals(RayTerm(t), n);
           const Eigen::Map<const Eigen::RowVectorXd> r_t(ev.residuals.data() + row, rows);
           const double sq = r_t.squaredNorm();
           double rho[3] = {sq, 1.0, 0.0};
@@ -759,8 +732,8 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
             Eigen::Vector3d q;
             ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_star.col(i).data(), q.data(),
                         fw_logits(s.fw_offset + i));
-            Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), p.block[kBlockRoot], p.root_init,
-                            intr, ray.uv.data(), ray.samples.depths[i], q.data(),
+            Cycle3dResidual(Cycle3dLoss(tau[i], weights[LossTerm::kCycle3d]), p.block[kBlockRoot],
+                            p.root_init, intr, ray.uv.data(), ray.samples.depths[i], q.data(),
                             ev.residuals.data() + R + 3 * i);
           }
         }
@@ -886,7 +859,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
           SeedJets(q.data(), 3, 0, qj_jet);
           SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
           SeedJets(intr, kIntrinsicsSize, 3 + kPoseSize, k);
-          Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), pose, p.root_init, k,
+          Cycle3dResidual(Cycle3dLoss(tau[i], weights[LossTerm::kCycle3d]), pose, p.root_init, k,
                           ray.uv.data(), ray.samples.depths[i], qj_jet, res);
           for (int c = 0; c < 3; ++c) {
             ev.residuals[R + 3 * i + c] = res[c].a;
@@ -939,7 +912,7 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
           SeedJets(q.data(), 3, 0, qj_jet);
           SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
           SeedJets(intr, kIntrinsicsSize, 3 + kPoseSize, k);
-          Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), pose, p.root_init, k,
+          Cycle3dResidual(Cycle3dLoss(tau[i], weights[LossTerm::kCycle3d]), pose, p.root_init, k,
                           ray.uv.data(), ray.samples.depths[i], qj_jet, res);
           Eigen::Matrix<double, 3, kPointPoseIntrinsics> E;
           for (int c = 0; c < 3; ++c) {

@@ -130,8 +130,8 @@ class RayReferenceFunctor {
       render(u.data(), all.data());
       int row = 0;
       for (int t = 0; t < static_cast<int>(term_); ++t) {
-        if (render.active(static_cast<LossTerm>(t))) {
-          row += LossTermResiduals(static_cast<LossTerm>(t), n);
+        if (render.active(RayTerm(t))) {
+          row += LossTermResiduals(RayTerm(t), n);
         }
       }
       for (int k = 0; k < LossTermResiduals(term_, n); ++k) residuals[k] = all[row + k];
@@ -149,8 +149,9 @@ class RayReferenceFunctor {
       T q[3];
       ForwardWarp(B, bones, block[kBlockBonesT], &x_star[3 * i], q,
                   delta_at(&x_star[3 * i], rest_code));
-      Cycle3dResidual(Cycle3dLoss(tau[i], weights.cycle_3d), root, model_params_.root_init, intr,
-                      ray_.uv.data(), ray_.samples.depths[i], q, residuals + 3 * i);
+      Cycle3dResidual(Cycle3dLoss(tau[i], weights[LossTerm::kCycle3d]), root,
+                      model_params_.root_init, intr, ray_.uv.data(), ray_.samples.depths[i], q,
+                      residuals + 3 * i);
     }
     return true;
   }

@@ -371,10 +371,7 @@ AutoSizeEvent AutoSizeGrow(const AutoSizeOptions& options, const RaySampler& sam
   std::vector<Ray> rays =
       sampler.Sample(options.eval_rays, samples_per_ray, eval_sampling, *model, bounds, rng);
   RayBatchOptions batch_options;
-  batch_options.weights.rgb = 1.0;
-  batch_options.weights.silhouette = 1.0;
-  batch_options.weights.flow = batch_options.weights.feature_match = 0.0;
-  batch_options.weights.cycle_2d = batch_options.weights.cycle_3d = 0.0;
+  batch_options.weights = RayLossWeights::Only({LossTerm::kRgb, LossTerm::kSilhouette});
   batch_options.matcher.exact = true;
   std::vector<RayEvaluation> evaluations;
   {

@@ -26,6 +26,17 @@
 #include "banmo/util/logging.h"
 
 namespace banmo {
+
+LossesConfig::LossesConfig() {
+  for (const LossTermInfo& info : kLossTable) (*this)[info.term].weight = info.default_weight;
+}
+
+RayLossWeights LossesConfig::RayWeights() const {
+  RayLossWeights w;
+  for (int t = 0; t < kNumRayTerms; ++t) w[RayTerm(t)] = terms[t].weight;
+  return w;
+}
+
 namespace {
 
 // ---- Field lists (keys = field names). ----
@@ -101,15 +112,7 @@ void VisitFields(V& v, LossConfig& o) {
 
 template <class V>
 void VisitFields(V& v, LossesConfig& o) {
-  v("rgb", o.rgb);
-  v("silhouette", o.silhouette);
-  v("flow", o.flow);
-  v("feature_match", o.feature_match);
-  v("cycle_2d", o.cycle_2d);
-  v("cycle_3d", o.cycle_3d);
-  v("eikonal", o.eikonal);
-  v("bone_inside", o.bone_inside);
-  v("pose_smoothness", o.pose_smoothness);
+  for (const LossTermInfo& info : kLossTable) v(info.key, o[info.term]);
   v("bone_inside_margin", o.bone_inside_margin);
 }
 
@@ -563,20 +566,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Positive(p + ".samples_per_ray", s.samples_per_ray);
 
   const std::string l = p + ".losses";
-  const std::pair<const char*, const LossConfig*> losses[] = {
-      {"rgb", &s.losses.rgb},
-      {"silhouette", &s.losses.silhouette},
-      {"flow", &s.losses.flow},
-      {"feature_match", &s.losses.feature_match},
-      {"cycle_2d", &s.losses.cycle_2d},
-      {"cycle_3d", &s.losses.cycle_3d},
-      {"eikonal", &s.losses.eikonal},
-      {"bone_inside", &s.losses.bone_inside},
-      {"pose_smoothness", &s.losses.pose_smoothness}};
   bool any_loss = false;
-  for (const auto& [name, loss] : losses) {
-    CheckLoss(c, l + "." + name, *loss);
-    any_loss = any_loss || loss->weight > 0;
+  for (const LossTermInfo& info : kLossTable) {
+    const LossConfig& loss = s.losses[info.term];
+    CheckLoss(c, l + "." + info.key, loss);
+    any_loss = any_loss || loss.weight > 0;
   }
   if (!any_loss) c.Fail(l, "every loss weight is 0 (nothing to minimise)");
   c.NonNegative(l + ".bone_inside_margin", s.losses.bone_inside_margin);
@@ -630,7 +624,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Fraction(g + ".foreground_fraction", s.sampling.foreground_fraction);
   c.Fraction(g + ".active_fraction", s.sampling.active_fraction);
   c.NonNegative(g + ".near_far_margin", s.sampling.near_far_margin);
-  if (s.losses.flow.weight > 0 && s.sampling.flow_gaps.empty()) {
+  if (s.losses[LossTerm::kFlow].weight > 0 && s.sampling.flow_gaps.empty()) {
     c.Fail(g + ".flow_gaps", "expected at least one gap when losses.flow.weight > 0");
   }
   for (size_t i = 0; i < s.sampling.flow_gaps.size(); ++i) {

@@ -55,35 +55,6 @@ std::unique_ptr<ceres::LossFunction> MakeRobustLoss(const RobustLossConfig& c) {
   ThrowInputError("robust.type: unknown robust loss '", c.type, "'");
 }
 
-RayLossWeights WeightsOf(const LossesConfig& l) {
-  RayLossWeights w;
-  w.rgb = l.rgb.weight;
-  w.silhouette = l.silhouette.weight;
-  w.flow = l.flow.weight;
-  w.feature_match = l.feature_match.weight;
-  w.cycle_2d = l.cycle_2d.weight;
-  w.cycle_3d = l.cycle_3d.weight;
-  return w;
-}
-
-const LossConfig& TermConfig(const LossesConfig& l, LossTerm term) {
-  switch (term) {
-    case LossTerm::kRgb:
-      return l.rgb;
-    case LossTerm::kSilhouette:
-      return l.silhouette;
-    case LossTerm::kFlow:
-      return l.flow;
-    case LossTerm::kFeatureMatch:
-      return l.feature_match;
-    case LossTerm::kCycle2d:
-      return l.cycle_2d;
-    case LossTerm::kCycle3d:
-      return l.cycle_3d;
-  }
-  return l.rgb;
-}
-
 // One-cycle learning rate (Smith 2018, as in BANMo's training): linear warm-up
 // from lr/25 to lr over warmup_fraction, then cosine decay to
 // lr * final_lr_fraction.
@@ -348,7 +319,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
 
     // ---- Problem set-up for this stage. ----
     RayBatchOptions batch_options;
-    batch_options.weights = WeightsOf(stage.losses);
+    batch_options.weights = stage.losses.RayWeights();
     batch_options.match_top_k = stage.sampling.match_top_k;
     batch_options.matcher.exact = true;  // deterministic (FLANN's trees are randomised)
     RayBatch batch(&model, batch_options);
@@ -428,18 +399,16 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       batch.SetDeltaSkinning((free && !configured_constant.count("delta_skinning")) ||
                              model.DeltaSkinningIsNonZero());
     };
-    std::array<std::unique_ptr<ceres::LossFunction>, kNumLossTerms> robust;
-    for (int t = 0; t < kNumLossTerms; ++t) {
-      robust[t] = MakeRobustLoss(TermConfig(stage.losses, static_cast<LossTerm>(t)).robust);
-    }
-    auto eikonal_robust = MakeRobustLoss(stage.losses.eikonal.robust);
-    auto inside_robust = MakeRobustLoss(stage.losses.bone_inside.robust);
-    auto smooth_robust = MakeRobustLoss(stage.losses.pose_smoothness.robust);
+    std::array<std::unique_ptr<ceres::LossFunction>, kNumRayTerms> robust;
+    for (int t = 0; t < kNumRayTerms; ++t) robust[t] = MakeRobustLoss(stage.losses.terms[t].robust);
+    auto eikonal_robust = MakeRobustLoss(stage.losses[LossTerm::kEikonal].robust);
+    auto inside_robust = MakeRobustLoss(stage.losses[LossTerm::kBoneInside].robust);
+    auto smooth_robust = MakeRobustLoss(stage.losses[LossTerm::kPoseSmoothness].robust);
 
     std::vector<ceres::ResidualBlockId> batch_blocks;
     std::vector<ceres::ResidualBlockId> regularizer_blocks;  // of batch_blocks: not ray terms
     RayRobustLosses ray_robust{};
-    for (int t = 0; t < kNumLossTerms; ++t) ray_robust[t] = robust[t].get();
+    for (int t = 0; t < kNumRayTerms; ++t) ray_robust[t] = robust[t].get();
     Timer stage_timer;
     const double stage_callback_start = callback_seconds;
     // Stage wall time without on_batch's own time.
@@ -533,9 +502,10 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       if (stage.sampling.importance_depth) {
         // Half the samples stay stratified, half are drawn from the rendering
         // weights of a first pass (NeRF's hierarchical sampling, one level).
+        // Only the rendering weights tau are read, and they do not depend
+        // on the loss weights: the silhouette alone keeps the pass cheap.
         RayBatchOptions coarse_options = batch_options;
-        coarse_options.weights = RayLossWeights();
-        coarse_options.weights.feature_match = coarse_options.weights.cycle_2d = 0.0;
+        coarse_options.weights = RayLossWeights::Only({LossTerm::kSilhouette});
         RayBatch coarse(&model, coarse_options);
         coarse.SetDeltaSkinning(batch.delta_skinning());
         coarse.SetRays(rays);
@@ -555,8 +525,8 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
       batch.SetRays(std::move(rays));
       std::set<const double*> used;
       for (int r = 0; r < batch.num_rays(); ++r) {
-        for (int t = 0; t < kNumLossTerms; ++t) {
-          const LossTerm term = static_cast<LossTerm>(t);
+        for (int t = 0; t < kNumRayTerms; ++t) {
+          const LossTerm term = RayTerm(t);
           if (!batch.rays()[r].HasTerm(term, batch_options.weights)) continue;
           std::vector<double*> blocks = batch.TermParameterBlocks(r, term);
           used.insert(blocks.begin(), blocks.end());
@@ -564,7 +534,7 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
                                                           robust[t].get(), blocks));
         }
       }
-      if (stage.losses.eikonal.weight > 0 && stage.sampling.eikonal_points > 0) {
+      if (stage.losses[LossTerm::kEikonal].weight > 0 && stage.sampling.eikonal_points > 0) {
         Eigen::Matrix3Xd points(3, stage.sampling.eikonal_points);
         for (int i = 0; i < points.cols(); ++i) {
           for (int k = 0; k < 3; ++k) {
@@ -572,22 +542,23 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
           }
         }
         batch_blocks.push_back(problem.AddResidualBlock(
-            MakeEikonalCostFunction(model.field(), points, stage.losses.eikonal.weight).release(),
+            MakeEikonalCostFunction(model.field(), points, stage.losses[LossTerm::kEikonal].weight)
+                .release(),
             eikonal_robust.get(), model.sdf()));
         regularizer_blocks.push_back(batch_blocks.back());
       }
-      if (B > 0 && stage.losses.bone_inside.weight > 0) {
+      if (B > 0 && stage.losses[LossTerm::kBoneInside].weight > 0) {
         batch_blocks.push_back(problem.AddResidualBlock(
             MakeBoneInsideCostFunction(model.field(), B, stage.losses.bone_inside_margin,
-                                       stage.losses.bone_inside.weight)
+                                       stage.losses[LossTerm::kBoneInside].weight)
                 .release(),
             inside_robust.get(), model.sdf(), model.bones()));
         regularizer_blocks.push_back(batch_blocks.back());
       }
-      if (stage.losses.pose_smoothness.weight > 0) {
+      if (stage.losses[LossTerm::kPoseSmoothness].weight > 0) {
         std::set<std::pair<int, int>> frames;
         for (const Ray& ray : batch.rays()) frames.insert({ray.video, ray.frame});
-        const double w = stage.losses.pose_smoothness.weight;
+        const double w = stage.losses[LossTerm::kPoseSmoothness].weight;
         for (const auto& [v, t] : frames) {
           if (t + 1 >= static_cast<int>(model.video(v).frames.size())) continue;
           FrameParameters& a = model.frame(v, t);
@@ -768,9 +739,9 @@ SolveResult Solver::RunStages(const SolveOptions& options, State* state) {
         for (int r = 0; r < batch.num_rays(); ++r) {
           const RayEvaluation& ev = batch.evaluation(r);
           const int n = batch.rays()[r].NumSamples();
-          for (int t = 0; t < kNumLossTerms; ++t) {
+          for (int t = 0; t < kNumRayTerms; ++t) {
             if (ev.term_row[t] < 0) continue;
-            const LossTerm term = static_cast<LossTerm>(t);
+            const LossTerm term = RayTerm(t);
             double sq = 0.0;
             for (int k = 0; k < LossTermResiduals(term, n); ++k) {
               sq += ev.residuals[ev.term_row[t] + k] * ev.residuals[ev.term_row[t] + k];

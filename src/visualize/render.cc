@@ -22,12 +22,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // residuals give rendered values, everything else off.
 RayBatchOptions RenderBatchOptions() {
   RayBatchOptions o;
-  o.weights.rgb = 1.0;
-  o.weights.silhouette = 1.0;
-  o.weights.flow = 1.0;
-  o.weights.feature_match = 0.0;
-  o.weights.cycle_2d = 0.0;
-  o.weights.cycle_3d = 0.0;
+  o.weights = RayLossWeights::Only({LossTerm::kRgb, LossTerm::kSilhouette, LossTerm::kFlow});
   return o;
 }
 

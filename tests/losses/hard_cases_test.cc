@@ -19,8 +19,7 @@ namespace {
 using testing::AllFinite;
 using testing::EvaluateCost;
 
-constexpr LossTerm kTerms[] = {LossTerm::kRgb,          LossTerm::kSilhouette, LossTerm::kFlow,
-                               LossTerm::kFeatureMatch, LossTerm::kCycle2d,    LossTerm::kCycle3d};
+constexpr std::array<LossTerm, kNumRayTerms> kTerms = RayTerms();
 
 // Builds the tiny scene, applies `edit` to the model and rays, and checks
 // every term of every ray through the batched path (and optionally against

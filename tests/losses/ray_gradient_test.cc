@@ -30,7 +30,7 @@ constexpr double kTolerance = 1e-10;
 double ReferenceGradient(RayBatch& batch, const RayRobustLosses& robust, Gradient* g) {
   double cost = 0.0;
   for (int r = 0; r < batch.num_rays(); ++r) {
-    for (int t = 0; t < kNumLossTerms; ++t) {
+    for (int t = 0; t < kNumRayTerms; ++t) {
       const LossTerm term = static_cast<LossTerm>(t);
       if (!batch.rays()[r].HasTerm(term, batch.options().weights)) continue;
       auto cost_function = batch.MakeCostFunction(r, term);
@@ -131,7 +131,7 @@ TEST_P(RayGradient, EqualsCeresProblemEvaluateWithConstantBlocks) {
   ceres::Problem problem(po);
   std::set<double*> all;
   for (int r = 0; r < batch.num_rays(); ++r) {
-    for (int t = 0; t < kNumLossTerms; ++t) {
+    for (int t = 0; t < kNumRayTerms; ++t) {
       const LossTerm term = static_cast<LossTerm>(t);
       if (!batch.rays()[r].HasTerm(term, batch.options().weights)) continue;
       std::vector<double*> blocks = batch.TermParameterBlocks(r, term);

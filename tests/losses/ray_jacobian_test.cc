@@ -97,10 +97,7 @@ TEST_P(RayTermJacobian, AgreesWithNumericDifferentiation) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(AllTerms, RayTermJacobian,
-                         ::testing::Values(LossTerm::kRgb, LossTerm::kSilhouette, LossTerm::kFlow,
-                                           LossTerm::kFeatureMatch, LossTerm::kCycle2d,
-                                           LossTerm::kCycle3d),
+INSTANTIATE_TEST_SUITE_P(AllTerms, RayTermJacobian, ::testing::ValuesIn(RayTerms()),
                          [](const ::testing::TestParamInfo<LossTerm>& info) {
                            return std::string(LossTermName(info.param));
                          });
@@ -226,10 +223,7 @@ TEST(DeltaSkinning, OffEqualsOnWhileTheOutputLayerIsZero) {
   for (size_t k = 0; k < on.size(); ++k) EXPECT_EQ(on[k], off[k]) << k;
 }
 
-INSTANTIATE_TEST_SUITE_P(AllTerms, DeltaSkinningJacobian,
-                         ::testing::Values(LossTerm::kRgb, LossTerm::kSilhouette, LossTerm::kFlow,
-                                           LossTerm::kFeatureMatch, LossTerm::kCycle2d,
-                                           LossTerm::kCycle3d),
+INSTANTIATE_TEST_SUITE_P(AllTerms, DeltaSkinningJacobian, ::testing::ValuesIn(RayTerms()),
                          [](const ::testing::TestParamInfo<LossTerm>& info) {
                            return std::string(LossTermName(info.param));
                          });

@@ -25,9 +25,9 @@ SolverConfig TinyAdamConfig(int iterations) {
   s.batch_rays = 64;
   s.samples_per_ray = 12;
   s.adam.weight_decay = 1e-3;
-  s.losses.rgb.robust = {"huber", 0.05};
-  s.losses.cycle_3d.robust = {"cauchy", 0.1};
-  s.losses.bone_inside.robust = {"soft_l1", 0.1};
+  s.losses[LossTerm::kRgb].robust = {"huber", 0.05};
+  s.losses[LossTerm::kCycle3d].robust = {"cauchy", 0.1};
+  s.losses[LossTerm::kBoneInside].robust = {"soft_l1", 0.1};
   s.constant = {"intrinsics", "appearance"};
   return c;
 }

@@ -95,11 +95,12 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   ASSERT_EQ(c.stages.size(), 3u);
   // Stage 2: 2D cycle (and a little silhouette), articulation only.
   const StageConfig& s2 = c.stages[1];
-  EXPECT_GT(s2.losses.cycle_2d.weight, 0);
-  EXPECT_EQ(s2.losses.rgb.weight, 0);
-  EXPECT_EQ(s2.losses.flow.weight, 0);
-  EXPECT_EQ(s2.losses.feature_match.weight, 0);
-  EXPECT_LT(s2.losses.silhouette.weight, c.stages[0].losses.silhouette.weight);
+  EXPECT_GT(s2.losses[LossTerm::kCycle2d].weight, 0);
+  EXPECT_EQ(s2.losses[LossTerm::kRgb].weight, 0);
+  EXPECT_EQ(s2.losses[LossTerm::kFlow].weight, 0);
+  EXPECT_EQ(s2.losses[LossTerm::kFeatureMatch].weight, 0);
+  EXPECT_LT(s2.losses[LossTerm::kSilhouette].weight,
+            c.stages[0].losses[LossTerm::kSilhouette].weight);
   const std::set<std::string> constant2(s2.constant.begin(), s2.constant.end());
   EXPECT_EQ(constant2, (std::set<std::string>{"sdf", "color", "embedding", "log_beta", "appearance",
                                               "root", "intrinsics"}));
@@ -244,18 +245,15 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].step_rule", [&](SolverConfig* c) { S(c).step_rule = "sgd"; }},
       {"stages[1].batch_rays", [&](SolverConfig* c) { S(c).batch_rays = 0; }},
       {"stages[1].samples_per_ray", [&](SolverConfig* c) { S(c).samples_per_ray = -2; }},
-      {"stages[1].losses.rgb.weight", [&](SolverConfig* c) { S(c).losses.rgb.weight = -1; }},
+      {"stages[1].losses.rgb.weight",
+       [&](SolverConfig* c) { S(c).losses[LossTerm::kRgb].weight = -1; }},
       {"stages[1].losses.pose_smoothness.robust.type",
-       [&](SolverConfig* c) { S(c).losses.pose_smoothness.robust.type = "l1"; }},
+       [&](SolverConfig* c) { S(c).losses[LossTerm::kPoseSmoothness].robust.type = "l1"; }},
       {"stages[1].losses.flow.robust.scale",
-       [&](SolverConfig* c) { S(c).losses.flow.robust.scale = 0; }},
+       [&](SolverConfig* c) { S(c).losses[LossTerm::kFlow].robust.scale = 0; }},
       {"stages[1].losses:",
        [&](SolverConfig* c) {
-         LossesConfig& l = S(c).losses;
-         for (LossConfig* x : {&l.rgb, &l.silhouette, &l.flow, &l.feature_match, &l.cycle_2d,
-                               &l.cycle_3d, &l.eikonal, &l.bone_inside, &l.pose_smoothness}) {
-           x->weight = 0;
-         }
+         for (LossConfig& x : S(c).losses.terms) x.weight = 0;
        }},
       {"stages[1].losses.bone_inside_margin",
        [&](SolverConfig* c) { S(c).losses.bone_inside_margin = -0.1; }},
@@ -487,10 +485,9 @@ SolverConfig EveryFieldChanged() {
     s.samples_per_ray = 17;
     double w = 0.1;
     LossesConfig& l = s.losses;
-    for (LossConfig* x : {&l.rgb, &l.silhouette, &l.flow, &l.feature_match, &l.cycle_2d,
-                          &l.cycle_3d, &l.eikonal, &l.bone_inside, &l.pose_smoothness}) {
-      x->weight = (w += 0.123);
-      x->robust = {"cauchy", w * 2};
+    for (LossConfig& x : l.terms) {
+      x.weight = (w += 0.123);
+      x.robust = {"cauchy", w * 2};
     }
     l.bone_inside_margin = 0.031;
     s.constant = {"sdf", "bones_t"};
@@ -575,15 +572,15 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.step_rule, t.step_rule);
     EXPECT_EQ(s.batch_rays, t.batch_rays);
     EXPECT_EQ(s.samples_per_ray, t.samples_per_ray);
-    ExpectSameLoss(s.losses.rgb, t.losses.rgb);
-    ExpectSameLoss(s.losses.silhouette, t.losses.silhouette);
-    ExpectSameLoss(s.losses.flow, t.losses.flow);
-    ExpectSameLoss(s.losses.feature_match, t.losses.feature_match);
-    ExpectSameLoss(s.losses.cycle_2d, t.losses.cycle_2d);
-    ExpectSameLoss(s.losses.cycle_3d, t.losses.cycle_3d);
-    ExpectSameLoss(s.losses.eikonal, t.losses.eikonal);
-    ExpectSameLoss(s.losses.bone_inside, t.losses.bone_inside);
-    ExpectSameLoss(s.losses.pose_smoothness, t.losses.pose_smoothness);
+    ExpectSameLoss(s.losses[LossTerm::kRgb], t.losses[LossTerm::kRgb]);
+    ExpectSameLoss(s.losses[LossTerm::kSilhouette], t.losses[LossTerm::kSilhouette]);
+    ExpectSameLoss(s.losses[LossTerm::kFlow], t.losses[LossTerm::kFlow]);
+    ExpectSameLoss(s.losses[LossTerm::kFeatureMatch], t.losses[LossTerm::kFeatureMatch]);
+    ExpectSameLoss(s.losses[LossTerm::kCycle2d], t.losses[LossTerm::kCycle2d]);
+    ExpectSameLoss(s.losses[LossTerm::kCycle3d], t.losses[LossTerm::kCycle3d]);
+    ExpectSameLoss(s.losses[LossTerm::kEikonal], t.losses[LossTerm::kEikonal]);
+    ExpectSameLoss(s.losses[LossTerm::kBoneInside], t.losses[LossTerm::kBoneInside]);
+    ExpectSameLoss(s.losses[LossTerm::kPoseSmoothness], t.losses[LossTerm::kPoseSmoothness]);
     EXPECT_EQ(s.losses.bone_inside_margin, t.losses.bone_inside_margin);
     EXPECT_EQ(s.constant, t.constant);
     EXPECT_EQ(s.adam.lr, t.adam.lr);
@@ -781,6 +778,26 @@ TEST(SolverConfig, DocsExamplesParseAndEveryKeyIsDocumented) {
                             doc.find("." + key + "`") != std::string::npos;
     EXPECT_TRUE(documented) << key << " (" << path << ")";
   }
+}
+
+}  // namespace
+}  // namespace banmo
+
+namespace banmo {
+namespace {
+
+// The config's loss keys and default weights are the loss table's.
+TEST(SolverConfig, LossKeysAndDefaultsComeFromTheTable) {
+  const LossesConfig defaults;
+  for (const LossTermInfo& info : kLossTable) {
+    EXPECT_EQ(defaults[info.term].weight, info.default_weight) << info.key;
+    const SolverConfig c = ParseSolverConfig(
+        std::string("stages:\n  - losses: {") + info.key + ": {weight: 0.25}}\n", "t.yaml");
+    EXPECT_EQ(c.stages[0].losses[info.term].weight, 0.25) << info.key;
+    EXPECT_NE(SolverConfigToYaml(c).find(std::string(info.key) + ":"), std::string::npos);
+  }
+  const RayLossWeights ray = defaults.RayWeights();
+  for (LossTerm term : RayTerms()) EXPECT_EQ(ray[term], LossInfo(term).default_weight);
 }
 
 }  // namespace

@@ -137,7 +137,7 @@ TEST(Solver, DeltaSkinningSwitchesOnFromAFraction) {
     SolverConfig c = TinyConfig(rule, 4);
     c.model.delta_skinning = config.model.delta_skinning;
     c.stages[0].schedule.delta_skinning_from = 0.0;
-    c.stages[0].losses.cycle_3d.weight = 1.0;
+    c.stages[0].losses[LossTerm::kCycle3d].weight = 1.0;
     Solver s2(data, c, MakeModelForDataset(data, c.model));
     const SolveResult r2 = s2.Run(options_quiet());
     EXPECT_TRUE(r2.stages[0].finite) << rule;

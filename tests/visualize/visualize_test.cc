@@ -120,9 +120,8 @@ TEST(RenderFrame, EqualsTheFullJetReferenceResidualPlusObservation) {
     rays.push_back(ray);
   }
   RayBatchOptions batch_options;
-  batch_options.weights.rgb = batch_options.weights.silhouette = batch_options.weights.flow = 1.0;
-  batch_options.weights.feature_match = batch_options.weights.cycle_2d =
-      batch_options.weights.cycle_3d = 0.0;
+  batch_options.weights =
+      RayLossWeights::Only({LossTerm::kRgb, LossTerm::kSilhouette, LossTerm::kFlow});
   Model& mutable_model = const_cast<Model&>(model);  // the batch only reads it here
   RayBatch batch(&mutable_model, batch_options);
   batch.SetRays(rays);

@@ -3,36 +3,30 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
+#include "banmo/losses/loss_table.h"
 #include "banmo/render/volume_rendering.h"
 
 namespace banmo {
 
-// The loss terms evaluated per ray. Each active term of a ray becomes one
-// Ceres residual block (so each term has its own robust loss and carries only
-// the parameter blocks it depends on); all of a ray's terms share one batched
-// evaluation (losses/ray_batch.h).
-enum class LossTerm { kRgb = 0, kSilhouette, kFlow, kFeatureMatch, kCycle2d, kCycle3d };
-inline constexpr int kNumLossTerms = 6;
-// Terms computed by the ray render functor (all but kCycle3d).
-inline constexpr int kNumRenderTerms = 5;
+// Weight of each per-ray loss term (losses/loss_table.h); 0 switches a term
+// off. Defaults: the table's.
+class RayLossWeights {
+ public:
+  RayLossWeights();
+  explicit RayLossWeights(const std::array<double, kNumRayTerms>& weights) : w_(weights) {}
+  // Weight 1 for the `enabled` terms, 0 for all others.
+  static RayLossWeights Only(std::initializer_list<LossTerm> enabled);
 
-const char* LossTermName(LossTerm term);  // "rgb", "silhouette", "flow", ...
-// Residuals of a term for a ray with `num_samples` samples.
-int LossTermResiduals(LossTerm term, int num_samples);
+  double& operator[](LossTerm term) { return w_.at(static_cast<size_t>(term)); }
+  double operator[](LossTerm term) const { return w_.at(static_cast<size_t>(term)); }
+  double Weight(LossTerm term) const { return (*this)[term]; }
 
-// Weight of each loss term; 0 switches a term off.
-struct RayLossWeights {
-  double rgb = 1.0;            // L_rgb, colour in [0, 1]
-  double silhouette = 1.0;     // L_sil
-  double flow = 0.01;          // L_OF (pixels^2)
-  double feature_match = 1.0;  // L_match (Eq. 17), canonical units^2
-  double cycle_2d = 0.01;      // L_2D-cyc (Eq. 18), pixels^2
-  double cycle_3d = 1.0;       // L_3D-cyc (Eq. 19), scene units^2
-
-  double Weight(LossTerm term) const;
+ private:
+  std::array<double, kNumRayTerms> w_;
 };
 
 // Observations and constants of one ray (data, never optimised).

@@ -46,26 +46,8 @@ namespace banmo {
 
 // Robust loss of each loss term (indexed by LossTerm; nullptr = none, i.e.
 // rho(s) = s), as given to ceres::Problem::AddResidualBlock.
-using RayRobustLosses = std::array<const ceres::LossFunction*, kNumLossTerms>;
+using RayRobustLosses = std::array<const ceres::LossFunction*, kNumRayTerms>;
 
-// Parameter blocks a ray's evaluation reads.
-enum RayBlock {
-  kBlockSdf = 0,
-  kBlockColor,
-  kBlockEmbedding,
-  kBlockLogBeta,
-  kBlockAppearance,
-  kBlockRoot,           // root_delta of frame t
-  kBlockBones,          // rest bones
-  kBlockBonesT,         // bone transforms of frame t
-  kBlockIntrinsics,     // intrinsics of the ray's video
-  kBlockPartnerRoot,    // root_delta of the flow partner frame t'
-  kBlockPartnerBonesT,  // bone transforms of frame t'
-  kBlockDeltaSkin,      // MLP_Delta weights (delta skinning, Eq. 14)
-  kBlockRestPoseCode,   // omega^* (forward warps' delta skinning)
-  kBlockPoseCode,       // omega^t of frame t (backward warp's delta skinning)
-  kNumRayBlocks
-};
 const char* RayBlockName(RayBlock block);
 
 // Pointers to the values of a ray's parameter blocks (null = absent).
@@ -84,8 +66,8 @@ using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eig
 // then the 3N rows of the 3D cycle.
 struct RayEvaluation {
   std::vector<double> residuals;
-  std::vector<double> tau;                    // rendering weights tau_i of the samples (Eq. 4)
-  std::array<int, kNumLossTerms> term_row{};  // first row of each term, -1 if inactive
+  std::vector<double> tau;                   // rendering weights tau_i of the samples (Eq. 4)
+  std::array<int, kNumRayTerms> term_row{};  // first row of each term, -1 if inactive
   std::array<RowMajorMatrix, kNumRayBlocks> jacobians;  // rows x block size
   bool has_jacobians = false;
 };

@@ -112,7 +112,7 @@ class RayRenderFunctor {
   RayRenderFunctor(const Ray& ray, const RayLossWeights& weights)
       : ray_(ray), weights_(weights), locals_(RenderLocals::For(ray, weights)) {
     for (int t = 0; t < kNumRenderTerms; ++t) {
-      const LossTerm term = static_cast<LossTerm>(t);
+      const LossTerm term = RayTerm(t);
       active_[t] = ray.HasTerm(term, weights);
       if (active_[t]) num_residuals_ += LossTermResiduals(term, ray.NumSamples());
     }
@@ -134,13 +134,13 @@ class RayRenderFunctor {
       for (int i = 0; i < n; ++i) {
         for (int k = 0; k < 3; ++k) color[k] += tau[i] * u[locals_.rgb + 3 * i + k];
       }
-      RgbLoss(ray_.rgb, weights_.rgb)(color, residual + row);
+      RgbLoss(ray_.rgb, weights_[LossTerm::kRgb])(color, residual + row);
       row += RgbLoss::kNumResiduals;
     }
     if (active(LossTerm::kSilhouette)) {
       T opacity(0);
       for (int i = 0; i < n; ++i) opacity += tau[i];
-      SilhouetteLoss(ray_.mask, weights_.silhouette)(&opacity, residual + row);
+      SilhouetteLoss(ray_.mask, weights_[LossTerm::kSilhouette])(&opacity, residual + row);
       row += SilhouetteLoss::kNumResiduals;
     }
     if (active(LossTerm::kFlow)) {
@@ -148,7 +148,7 @@ class RayRenderFunctor {
       for (int i = 0; i < n; ++i) {
         for (int k = 0; k < 2; ++k) displacement[k] += tau[i] * u[locals_.displacement + 2 * i + k];
       }
-      FlowLoss(ray_.flow, weights_.flow)(displacement, residual + row);
+      FlowLoss(ray_.flow, weights_[LossTerm::kFlow])(displacement, residual + row);
       row += FlowLoss::kNumResiduals;
     }
     if (active(LossTerm::kFeatureMatch)) {
@@ -156,11 +156,13 @@ class RayRenderFunctor {
       for (int i = 0; i < n; ++i) {
         for (int k = 0; k < 3; ++k) expected[k] += tau[i] * u[locals_.canonical + 3 * i + k];
       }
-      FeatureMatchLoss(weights_.feature_match)(u + locals_.matched, expected, residual + row);
+      FeatureMatchLoss(weights_.Weight(LossTerm::kFeatureMatch))(u + locals_.matched, expected,
+                                                                 residual + row);
       row += FeatureMatchLoss::kNumResiduals;
     }
     if (active(LossTerm::kCycle2d)) {
-      Cycle2dLoss(ray_.uv, weights_.cycle_2d)(u + locals_.cycle_projection, residual + row);
+      Cycle2dLoss(ray_.uv, weights_[LossTerm::kCycle2d])(u + locals_.cycle_projection,
+                                                         residual + row);
       row += Cycle2dLoss::kNumResiduals;
     }
     return true;
