@@ -119,7 +119,9 @@ int RunSolve(int argc, char** argv) {
   options.quiet = quiet;
   if (source != nullptr) {
     CopySharedParameters(*source, model.get(), retarget_dir);  // optim/solver.h
-    options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones", "delta_skinning"};
+    options.extra_constant = {ParameterGroup::kSdf,       ParameterGroup::kColor,
+                              ParameterGroup::kEmbedding, ParameterGroup::kLogBeta,
+                              ParameterGroup::kBones,     ParameterGroup::kDeltaSkinning};
     scale_origin = "from the --retarget model";
   }
   if (!resume) {

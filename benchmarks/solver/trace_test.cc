@@ -40,9 +40,9 @@ TEST(ConfigOverrides, SetsScalarsListsAndEveryStage) {
   EXPECT_EQ(c.model.field.sdf_width, 24);
   ASSERT_EQ(c.stages.size(), 2u);
   for (const StageConfig& s : c.stages) {
-    EXPECT_EQ(s.step_rule, "alternate");
+    EXPECT_EQ(s.step_rule, StepRule::kAlternate);
     EXPECT_EQ(s.sampling.flow_gaps, std::vector<int>{8});
-    EXPECT_EQ(s.lm.linear_solver, "iterative_schur");
+    EXPECT_EQ(s.lm.linear_solver, LinearSolverType::kIterativeSchur);
     EXPECT_EQ(s.batch_rays, 128);      // untouched defaults: still merged
     EXPECT_EQ(s.samples_per_ray, 12);  // from the overridden defaults
   }

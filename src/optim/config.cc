@@ -289,6 +289,18 @@ void ReadValue(const std::string& source, const std::string& path, const YAML::N
   }
 }
 
+// An option enum (util/enum_names.h) by its name.
+template <class E>
+std::enable_if_t<std::is_enum_v<E>> ReadValue(const std::string& source, const std::string& path,
+                                              const YAML::Node& node, E* value) {
+  const std::optional<E> v = node.IsScalar() ? ParseEnum<E>(node.Scalar()) : std::nullopt;
+  if (!v) {
+    ThrowInputError(source, ": ", path, ": expected one of ", EnumChoices<E>(), ", got ",
+                    Describe(node), LineOf(node));
+  }
+  *value = *v;
+}
+
 // A list replaces the default list entirely; an empty value (`key:`) is the
 // empty list.
 template <class T>
@@ -360,7 +372,11 @@ class FieldReader {
   }
   template <class S>
   void Read(const std::string& path, const YAML::Node& node, S* v) {
-    ReadStruct(source_, path, node, v);
+    if constexpr (std::is_enum_v<S>) {
+      ReadValue(source_, path, node, v);
+    } else {
+      ReadStruct(source_, path, node, v);
+    }
   }
 
   const std::string& source_;
@@ -499,7 +515,11 @@ class FieldWriter {
   }
   template <class S>
   void Write(S& v) {
-    WriteStruct(v);
+    if constexpr (std::is_enum_v<S>) {
+      out_ << EnumName(v);
+    } else {
+      WriteStruct(v);
+    }
   }
 
   YAML::Emitter& out_;
@@ -530,38 +550,19 @@ class Checker {
   void Fraction(const std::string& key, double v) const {
     if (!(v >= 0 && v <= 1)) Fail(key, "expected a fraction in [0, 1], got ", v);
   }
-  void OneOf(const std::string& key, const std::string& v,
-             const std::vector<std::string>& allowed) const {
-    for (const std::string& a : allowed) {
-      if (v == a) return;
-    }
-    std::string list;
-    for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
-    Fail(key, "expected one of {", list, "}, got '", v, "'");
-  }
 
  private:
   const std::string& source_;
 };
 
-const std::vector<std::string>& ConstantGroups() {
-  static const std::vector<std::string> groups = {
-      "sdf",   "color",   "embedding",  "log_beta",       "appearance", "root",
-      "bones", "bones_t", "intrinsics", "delta_skinning", "pose_code"};
-  return groups;
-}
-
 void CheckLoss(const Checker& c, const std::string& key, const LossConfig& loss) {
   c.NonNegative(key + ".weight", loss.weight);
-  c.OneOf(key + ".robust.type", loss.robust.type,
-          {"none", "huber", "cauchy", "soft_l1", "arctan", "tolerant"});
   c.Positive(key + ".robust.scale", loss.robust.scale);
 }
 
 void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   if (s.name.empty()) c.Fail(p + ".name", "expected a non-empty name");
   c.Positive(p + ".iterations", s.iterations);
-  c.OneOf(p + ".step_rule", s.step_rule, {"adam", "lm", "alternate"});
   c.Positive(p + ".batch_rays", s.batch_rays);
   c.Positive(p + ".samples_per_ray", s.samples_per_ray);
 
@@ -575,21 +576,22 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   if (!any_loss) c.Fail(l, "every loss weight is 0 (nothing to minimise)");
   c.NonNegative(l + ".bone_inside_margin", s.losses.bone_inside_margin);
 
-  std::set<std::string> constant;
+  ParameterGroupSet constant;
   for (size_t i = 0; i < s.constant.size(); ++i) {
     const std::string key = p + ".constant[" + std::to_string(i) + "]";
-    c.OneOf(key, s.constant[i], ConstantGroups());
-    if (!constant.insert(s.constant[i]).second) {
-      c.Fail(key, "group '", s.constant[i], "' listed twice");
+    if (constant.Contains(s.constant[i])) {
+      c.Fail(key, "group '", EnumName(s.constant[i]), "' listed twice");
     }
+    constant.Insert(s.constant[i]);
   }
   // The groups every model has (delta_skinning and pose_code exist only with
   // delta skinning, which alone is nothing to reconstruct).
-  int base_constant = 0;
-  for (const std::string& g : constant) {
-    base_constant += g != "delta_skinning" && g != "pose_code";
+  bool all_constant = true;
+  for (const auto& [group, name] : EnumNames<ParameterGroup>::kNames) {
+    if (group == ParameterGroup::kDeltaSkinning || group == ParameterGroup::kPoseCode) continue;
+    all_constant = all_constant && constant.Contains(group);
   }
-  if (base_constant == static_cast<int>(ConstantGroups().size()) - 2) {
+  if (all_constant) {
     c.Fail(p + ".constant", "every parameter group is constant (nothing to optimise)");
   }
 
@@ -603,7 +605,6 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   }
   c.Positive(a + ".epsilon", s.adam.epsilon);
   c.NonNegative(a + ".weight_decay", s.adam.weight_decay);
-  c.OneOf(a + ".schedule", s.adam.schedule, {"onecycle", "constant"});
   c.Fraction(a + ".warmup_fraction", s.adam.warmup_fraction);
   c.Fraction(a + ".final_lr_fraction", s.adam.final_lr_fraction);
   c.Positive(a + ".pose_lr_scale", s.adam.pose_lr_scale);
@@ -617,7 +618,6 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
     c.Fail(m + ".max_radius", "expected >= lm.initial_radius (", s.lm.initial_radius, "), got ",
            s.lm.max_radius);
   }
-  c.OneOf(m + ".linear_solver", s.lm.linear_solver, {"cgnr", "iterative_schur"});
   c.Positive(m + ".iterations_per_batch", s.lm.iterations_per_batch);
 
   const std::string g = p + ".sampling";

@@ -19,16 +19,16 @@ namespace {
 const Dataset& TinyDataset() { return testing::TinyQuadrupedDataset(1); }
 
 SolverConfig TinyAdamConfig(int iterations) {
-  SolverConfig c = testing::TinySolverConfig("adam", iterations);
+  SolverConfig c = testing::TinySolverConfig(StepRule::kAdam, iterations);
   c.seed = 5;
   StageConfig& s = c.stages[0];
   s.batch_rays = 64;
   s.samples_per_ray = 12;
   s.adam.weight_decay = 1e-3;
-  s.losses[LossTerm::kRgb].robust = {"huber", 0.05};
-  s.losses[LossTerm::kCycle3d].robust = {"cauchy", 0.1};
-  s.losses[LossTerm::kBoneInside].robust = {"soft_l1", 0.1};
-  s.constant = {"intrinsics", "appearance"};
+  s.losses[LossTerm::kRgb].robust = {RobustLossType::kHuber, 0.05};
+  s.losses[LossTerm::kCycle3d].robust = {RobustLossType::kCauchy, 0.1};
+  s.losses[LossTerm::kBoneInside].robust = {RobustLossType::kSoftL1, 0.1};
+  s.constant = {ParameterGroup::kIntrinsics, ParameterGroup::kAppearance};
   return c;
 }
 

@@ -85,7 +85,7 @@ struct PosedScene {
 
 PosedScene MakePosedScene(int num_bones) {
   PosedScene scene;
-  ModelOptions options = testing::TinySolverConfig("adam", 1).model;
+  ModelOptions options = testing::TinySolverConfig(StepRule::kAdam, 1).model;
   options.num_bones = num_bones;
   PinholeCamera camera;
   camera.width = camera.height = 32;
@@ -233,7 +233,7 @@ TEST(AttributeErrors, SharesAndRatios) {
 // sdf, feature and rgb (1e-12, as tests/field/mlp_widen_test.cc) and gives
 // blocks of the new widths.
 TEST(ModelSetFieldWidths, ExactWideningPreservesTheField) {
-  ModelOptions options = testing::TinySolverConfig("adam", 1).model;
+  ModelOptions options = testing::TinySolverConfig(StepRule::kAdam, 1).model;
   PinholeCamera camera;
   camera.width = camera.height = 32;
   camera.intrinsics << 40, 40, 16, 16;
@@ -275,7 +275,7 @@ TEST(ModelSetFieldWidths, ExactWideningPreservesTheField) {
 // little; the same generator state gives the same model bit for bit.
 TEST(AutoSizeGrow, SplitsBonesDeterministically) {
   const Dataset& data = testing::TinyQuadrupedDataset();
-  SolverConfig config = testing::TinySolverConfig("adam", 15);
+  SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 15);
   Solver solver(data, config, MakeModelForDataset(data, config.model));
   SolveOptions quiet;
   quiet.quiet = true;
@@ -332,7 +332,7 @@ TEST(AutoSizeGrow, SplitsBonesDeterministically) {
 // field barely changes (only the symmetry-breaking noise moves it).
 TEST(AutoSizeGrow, WidensWhenNoBoneIsSplit) {
   const Dataset& data = testing::TinyQuadrupedDataset();
-  SolverConfig config = testing::TinySolverConfig("adam", 1);
+  SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
   std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
   AutoSizeOptions options;
   options.enabled = true;

@@ -101,14 +101,15 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   EXPECT_EQ(s2.losses[LossTerm::kFeatureMatch].weight, 0);
   EXPECT_LT(s2.losses[LossTerm::kSilhouette].weight,
             c.stages[0].losses[LossTerm::kSilhouette].weight);
-  const std::set<std::string> constant2(s2.constant.begin(), s2.constant.end());
-  EXPECT_EQ(constant2, (std::set<std::string>{"sdf", "color", "embedding", "log_beta", "appearance",
-                                              "root", "intrinsics"}));
+  using G = ParameterGroup;
+  const std::set<G> constant2(s2.constant.begin(), s2.constant.end());
+  EXPECT_EQ(constant2, (std::set<G>{G::kSdf, G::kColor, G::kEmbedding, G::kLogBeta, G::kAppearance,
+                                    G::kRoot, G::kIntrinsics}));
   // Stage 3: importance depth + active sampling, root poses fixed.
   const StageConfig& s3 = c.stages[2];
   EXPECT_TRUE(s3.sampling.importance_depth);
   EXPECT_EQ(s3.sampling.active_fraction, 0.25);
-  EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), "root"), s3.constant.end());
+  EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), G::kRoot), s3.constant.end());
   // The defaults block reached every stage.
   for (const StageConfig& s : c.stages) {
     EXPECT_EQ(s.batch_rays, 512);
@@ -242,13 +243,10 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        }},
       {"stages[1].name", [&](SolverConfig* c) { S(c).name = ""; }},
       {"stages[1].iterations", [&](SolverConfig* c) { S(c).iterations = 0; }},
-      {"stages[1].step_rule", [&](SolverConfig* c) { S(c).step_rule = "sgd"; }},
       {"stages[1].batch_rays", [&](SolverConfig* c) { S(c).batch_rays = 0; }},
       {"stages[1].samples_per_ray", [&](SolverConfig* c) { S(c).samples_per_ray = -2; }},
       {"stages[1].losses.rgb.weight",
        [&](SolverConfig* c) { S(c).losses[LossTerm::kRgb].weight = -1; }},
-      {"stages[1].losses.pose_smoothness.robust.type",
-       [&](SolverConfig* c) { S(c).losses[LossTerm::kPoseSmoothness].robust.type = "l1"; }},
       {"stages[1].losses.flow.robust.scale",
        [&](SolverConfig* c) { S(c).losses[LossTerm::kFlow].robust.scale = 0; }},
       {"stages[1].losses:",
@@ -259,23 +257,19 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).losses.bone_inside_margin = -0.1; }},
       {"stages[1].constant[1]",
        [&](SolverConfig* c) {
-         S(c).constant = {"sdf", "shape"};
-       }},
-      {"stages[1].constant[1]",
-       [&](SolverConfig* c) {
-         S(c).constant = {"sdf", "sdf"};
+         S(c).constant = {ParameterGroup::kSdf, ParameterGroup::kSdf};
        }},
       {"stages[1].constant:",
        [&](SolverConfig* c) {
-         S(c).constant = {"sdf",  "color", "embedding", "log_beta",  "appearance",
-                          "root", "bones", "bones_t",   "intrinsics"};
+         using G = ParameterGroup;
+         S(c).constant = {G::kSdf,  G::kColor, G::kEmbedding, G::kLogBeta,   G::kAppearance,
+                          G::kRoot, G::kBones, G::kBonesT,    G::kIntrinsics};
        }},
       {"stages[1].adam.lr", [&](SolverConfig* c) { S(c).adam.lr = 0; }},
       {"stages[1].adam.beta1", [&](SolverConfig* c) { S(c).adam.beta1 = 1; }},
       {"stages[1].adam.beta2", [&](SolverConfig* c) { S(c).adam.beta2 = -0.1; }},
       {"stages[1].adam.epsilon", [&](SolverConfig* c) { S(c).adam.epsilon = 0; }},
       {"stages[1].adam.weight_decay", [&](SolverConfig* c) { S(c).adam.weight_decay = -1; }},
-      {"stages[1].adam.schedule", [&](SolverConfig* c) { S(c).adam.schedule = "cosine"; }},
       {"stages[1].adam.warmup_fraction", [&](SolverConfig* c) { S(c).adam.warmup_fraction = 1.5; }},
       {"stages[1].adam.final_lr_fraction",
        [&](SolverConfig* c) { S(c).adam.final_lr_fraction = -0.5; }},
@@ -284,7 +278,6 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].lm.max_cg_iterations", [&](SolverConfig* c) { S(c).lm.max_cg_iterations = 0; }},
       {"stages[1].lm.initial_radius", [&](SolverConfig* c) { S(c).lm.initial_radius = 0; }},
       {"stages[1].lm.max_radius", [&](SolverConfig* c) { S(c).lm.max_radius = 10; }},
-      {"stages[1].lm.linear_solver", [&](SolverConfig* c) { S(c).lm.linear_solver = "dense"; }},
       {"stages[1].lm.iterations_per_batch",
        [&](SolverConfig* c) { S(c).lm.iterations_per_batch = 0; }},
       {"stages[1].sampling.foreground_fraction",
@@ -421,14 +414,15 @@ stages:
   EXPECT_EQ(a.adam.lr, 0.01);
   EXPECT_EQ(a.adam.beta1, 0.8);
   EXPECT_EQ(a.adam.beta2, d.adam.beta2);  // untouched keys keep the struct default
-  EXPECT_EQ(a.constant, (std::vector<std::string>{"root", "intrinsics"}));
+  EXPECT_EQ(a.constant,
+            (std::vector<ParameterGroup>{ParameterGroup::kRoot, ParameterGroup::kIntrinsics}));
   EXPECT_EQ(a.sampling.flow_gaps, std::vector<int>{3});
   EXPECT_EQ(a.samples_per_ray, d.samples_per_ray);
   // Maps merge key by key; lists replace.
   const StageConfig& b = c.stages[1];
   EXPECT_EQ(b.adam.lr, 0.01);
   EXPECT_EQ(b.adam.beta1, 0.5);
-  EXPECT_EQ(b.constant, std::vector<std::string>{"sdf"});
+  EXPECT_EQ(b.constant, std::vector<ParameterGroup>{ParameterGroup::kSdf});
   EXPECT_TRUE(b.sampling.importance_depth);
   EXPECT_EQ(b.sampling.flow_gaps, std::vector<int>{3});
   EXPECT_EQ(b.batch_rays, 512);
@@ -480,19 +474,19 @@ SolverConfig EveryFieldChanged() {
     StageConfig s;
     s.name = i == 0 ? "first: stage #1" : "null";  // quoting; "null" must stay a string
     s.iterations = 77 + i;
-    s.step_rule = i == 0 ? "lm" : "alternate";
+    s.step_rule = i == 0 ? StepRule::kLm : StepRule::kAlternate;
     s.batch_rays = 333;
     s.samples_per_ray = 17;
     double w = 0.1;
     LossesConfig& l = s.losses;
     for (LossConfig& x : l.terms) {
       x.weight = (w += 0.123);
-      x.robust = {"cauchy", w * 2};
+      x.robust = {RobustLossType::kCauchy, w * 2};
     }
     l.bone_inside_margin = 0.031;
-    s.constant = {"sdf", "bones_t"};
-    s.adam = {1.25e-3, 0.85, 0.995, 1e-10, 1e-4, "constant", 0.2, 0.05, 2.5, 3.5};
-    s.lm = {9, 123.0, 4.5e7, "iterative_schur", 2};
+    s.constant = {ParameterGroup::kSdf, ParameterGroup::kBonesT};
+    s.adam = {1.25e-3, 0.85, 0.995, 1e-10, 1e-4, LrSchedule::kConstant, 0.2, 0.05, 2.5, 3.5};
+    s.lm = {9, 123.0, 4.5e7, LinearSolverType::kIterativeSchur, 2};
     s.sampling.foreground_fraction = 0.7;
     s.sampling.active_fraction = 0.15;
     s.sampling.importance_depth = true;
@@ -798,6 +792,60 @@ TEST(SolverConfig, LossKeysAndDefaultsComeFromTheTable) {
   }
   const RayLossWeights ray = defaults.RayWeights();
   for (LossTerm term : RayTerms()) EXPECT_EQ(ray[term], LossInfo(term).default_weight);
+}
+
+}  // namespace
+}  // namespace banmo
+
+namespace banmo {
+namespace {
+
+// Typed options: an unknown name is refused where it is read, naming the key,
+// the choices and the line.
+TEST(SolverConfig, UnknownOptionNamesListTheChoices) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"stages:\n  - step_rule: sgd\n",
+       "t.yaml: stages[0].step_rule: expected one of {adam, lm, alternate}, got 'sgd' (line 2)"},
+      {"stages:\n  - adam: {schedule: cosine}\n",
+       "t.yaml: stages[0].adam.schedule: expected one of {onecycle, constant}, got 'cosine' "
+       "(line 2)"},
+      {"stages:\n  - lm: {linear_solver: dense}\n",
+       "t.yaml: stages[0].lm.linear_solver: expected one of {cgnr, iterative_schur}, got 'dense' "
+       "(line 2)"},
+      {"stages:\n  - losses:\n      flow: {robust: {type: l1}}\n",
+       "t.yaml: stages[0].losses.flow.robust.type: expected one of {none, huber, cauchy, soft_l1, "
+       "arctan, tolerant}, got 'l1' (line 3)"},
+      {"defaults:\n  step_rule: [adam]\nstages: [{}]\n",
+       "t.yaml: defaults.step_rule: expected one of {adam, lm, alternate}, got a list (line 2)"},
+  };
+  for (const auto& [yaml, expected] : cases) {
+    std::string message;
+    try {
+      ParseSolverConfig(yaml, "t.yaml");
+    } catch (const InputError& e) {
+      message = e.what();
+    }
+    EXPECT_EQ(message, expected) << yaml;
+  }
+}
+
+TEST(SolverConfig, OptionNamesRoundTrip) {
+  SolverConfig c = ParseSolverConfig(
+      "stages:\n  - step_rule: alternate\n    lm: {linear_solver: iterative_schur}\n"
+      "    adam: {schedule: constant}\n    constant: [bones_t, pose_code]\n"
+      "    losses: {rgb: {robust: {type: soft_l1}}}\n",
+      "t.yaml");
+  const StageConfig& s = c.stages[0];
+  EXPECT_EQ(s.step_rule, StepRule::kAlternate);
+  EXPECT_EQ(s.lm.linear_solver, LinearSolverType::kIterativeSchur);
+  EXPECT_EQ(s.adam.schedule, LrSchedule::kConstant);
+  EXPECT_EQ(s.constant,
+            (std::vector<ParameterGroup>{ParameterGroup::kBonesT, ParameterGroup::kPoseCode}));
+  EXPECT_EQ(s.losses[LossTerm::kRgb].robust.type, RobustLossType::kSoftL1);
+  const std::string yaml = SolverConfigToYaml(c);
+  EXPECT_NE(yaml.find("step_rule: alternate"), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("constant: [bones_t, pose_code]"), std::string::npos) << yaml;
+  EXPECT_EQ(SolverConfigToYaml(ParseSolverConfig(yaml, "again.yaml")), yaml);
 }
 
 }  // namespace

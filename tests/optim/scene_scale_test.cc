@@ -147,7 +147,7 @@ TEST(EstimateSceneScale, SyntheticScenesAtThreeObjectScales) {
 
 TEST(MakeModelForDataset, RootTranslationsAreInModelUnits) {
   const Dataset& data = testing::TinyQuadrupedScene(1, 0.01).dataset;
-  const SolverConfig config = testing::TinySolverConfig("adam", 1);
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
   ASSERT_FALSE(config.model.scene_scale.has_value());  // auto
   EXPECT_EQ(ResolveSceneScale(data, config.model), 1.0 / 64);
   auto check = [&](const Model& model, double s) {
@@ -170,7 +170,7 @@ TEST(MakeModelForDataset, RootTranslationsAreInModelUnits) {
 // Retargeting takes the source model's scale: the new videos' root
 // translations are re-expressed in the source's model units.
 TEST(CopySharedParameters, TargetTakesTheSourceScale) {
-  const SolverConfig config = testing::TinySolverConfig("adam", 1);
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
   const std::unique_ptr<Model> source =
       MakeModelForDataset(testing::TinyQuadrupedScene(1, 1.0).dataset, config.model);
   const Dataset& small = testing::TinyQuadrupedScene(7, 0.01).dataset;
@@ -194,7 +194,7 @@ std::string ReadText(const std::string& path) {
 }
 
 TEST(Checkpoint, KeepsTheSceneScaleAndOldCheckpointsLoadWithOne) {
-  const SolverConfig config = testing::TinySolverConfig("adam", 1);
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
   const std::unique_ptr<Model> model =
       MakeModelForDataset(testing::TinyQuadrupedScene(1, 100.0).dataset, config.model);
   ASSERT_EQ(model->scene_scale(), 128.0);
@@ -268,7 +268,7 @@ TEST(SceneScale, TinyAndHugeObjectsGiveMeshesOfTheirSize) {
   for (const double object_scale : {0.01, 100.0}) {
     SCOPED_TRACE("object scale " + std::to_string(object_scale));
     const synth::SynthScene& scene = testing::TinyQuadrupedScene(1, object_scale);
-    const SolverConfig config = testing::TinySolverConfig("adam", 40);
+    const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 40);
     Solver solver(scene.dataset, config, MakeModelForDataset(scene.dataset, config.model));
     SolveOptions options;
     options.quiet = true;

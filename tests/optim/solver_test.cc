@@ -22,7 +22,7 @@ namespace {
 using testing::AllParameters;
 
 const Dataset& TinyDataset(uint64_t seed = 1) { return testing::TinyQuadrupedDataset(seed); }
-SolverConfig TinyConfig(const std::string& step_rule, int iterations) {
+SolverConfig TinyConfig(StepRule step_rule, int iterations) {
   return testing::TinySolverConfig(step_rule, iterations);
 }
 
@@ -40,7 +40,7 @@ double Total(const TermLosses& l) {
 
 TEST(Solver, AdamReducesTheLossOnATinyScene) {
   const Dataset& data = TinyDataset();
-  const SolverConfig config = TinyConfig("adam", 80);
+  const SolverConfig config = TinyConfig(StepRule::kAdam, 80);
   Solver solver(data, config, MakeModelForDataset(data, config.model));
   SolveOptions options;
   options.quiet = true;
@@ -56,20 +56,20 @@ TEST(Solver, AdamReducesTheLossOnATinyScene) {
 
 TEST(Solver, LmAndAlternateStepRulesRunAndStayFinite) {
   const Dataset& data = TinyDataset();
-  for (const std::string rule : {"lm", "alternate"}) {
+  for (const StepRule rule : {StepRule::kLm, StepRule::kAlternate}) {
     const SolverConfig config = TinyConfig(rule, 6);
     Solver solver(data, config, MakeModelForDataset(data, config.model));
     SolveOptions options;
     options.quiet = true;
     const SolveResult r = solver.Run(options);
-    EXPECT_TRUE(r.stages[0].finite) << rule;
-    EXPECT_LT(Total(r.stages[0].last_losses), 10.0 * Total(r.stages[0].first_losses)) << rule;
+    EXPECT_TRUE(r.stages[0].finite) << EnumName(rule);
+    EXPECT_LT(Total(r.stages[0].last_losses), 10.0 * Total(r.stages[0].first_losses)) << EnumName(rule);
   }
 }
 
 TEST(Solver, OnBatchSeesEveryBatchInOrder) {
   const Dataset& data = TinyDataset();
-  SolverConfig config = TinyConfig("adam", 5);
+  SolverConfig config = TinyConfig(StepRule::kAdam, 5);
   config.stages.push_back(config.stages[0]);
   config.stages[1].name = "second";
   config.stages[1].iterations = 3;
@@ -101,7 +101,7 @@ TEST(Solver, OnBatchSeesEveryBatchInOrder) {
 // after, they move and the run stays finite.
 TEST(Solver, DeltaSkinningSwitchesOnFromAFraction) {
   const Dataset& data = TinyDataset();
-  SolverConfig config = TinyConfig("adam", 20);
+  SolverConfig config = TinyConfig(StepRule::kAdam, 20);
   config.model.delta_skinning.enabled = true;
   config.model.delta_skinning.width = 8;
   config.model.delta_skinning.pose_code_dim = 4;
@@ -133,15 +133,15 @@ TEST(Solver, DeltaSkinningSwitchesOnFromAFraction) {
 
   // The other step rules with delta skinning on from the start (LM uses the
   // full per-row Jacobians, including the 3D cycle's MLP_Delta rows).
-  for (const std::string rule : {"lm", "alternate"}) {
+  for (const StepRule rule : {StepRule::kLm, StepRule::kAlternate}) {
     SolverConfig c = TinyConfig(rule, 4);
     c.model.delta_skinning = config.model.delta_skinning;
     c.stages[0].schedule.delta_skinning_from = 0.0;
     c.stages[0].losses[LossTerm::kCycle3d].weight = 1.0;
     Solver s2(data, c, MakeModelForDataset(data, c.model));
     const SolveResult r2 = s2.Run(options_quiet());
-    EXPECT_TRUE(r2.stages[0].finite) << rule;
-    EXPECT_TRUE(s2.model().DeltaSkinningIsNonZero()) << rule;
+    EXPECT_TRUE(r2.stages[0].finite) << EnumName(rule);
+    EXPECT_TRUE(s2.model().DeltaSkinningIsNonZero()) << EnumName(rule);
   }
 }
 
@@ -176,10 +176,10 @@ void ExpectResumeEqualsStraight(const SolverConfig& config, const std::vector<in
 }
 
 TEST(Solver, ResumeGivesTheSameResultAsAnUninterruptedRun) {
-  SolverConfig config = TinyConfig("adam", 5);
+  SolverConfig config = TinyConfig(StepRule::kAdam, 5);
   StageConfig lm = config.stages[0];
   lm.name = "lm";
-  lm.step_rule = "lm";
+  lm.step_rule = StepRule::kLm;
   lm.iterations = 3;
   lm.sampling.active_fraction = 0.25;
   config.stages.push_back(lm);
@@ -188,7 +188,7 @@ TEST(Solver, ResumeGivesTheSameResultAsAnUninterruptedRun) {
 
 TEST(Solver, RetargetingFitsPosesAndKeepsSharedParameters) {
   const Dataset& data = TinyDataset();
-  const SolverConfig config = TinyConfig("adam", 10);
+  const SolverConfig config = TinyConfig(StepRule::kAdam, 10);
   Solver trained(data, config, MakeModelForDataset(data, config.model));
   SolveOptions options;
   options.quiet = true;
@@ -200,7 +200,9 @@ TEST(Solver, RetargetingFitsPosesAndKeepsSharedParameters) {
   const std::vector<double> sdf(model->sdf(), model->sdf() + model->sdf_size());
   const Pose root_before = model->frame(0, 0).root_delta;
   Solver retarget(other, config, std::move(model));
-  options.extra_constant = {"sdf", "color", "embedding", "log_beta", "bones"};
+  options.extra_constant = {ParameterGroup::kSdf, ParameterGroup::kColor,
+                            ParameterGroup::kEmbedding, ParameterGroup::kLogBeta,
+                            ParameterGroup::kBones};
   const SolveResult r = retarget.Run(options);
   EXPECT_TRUE(r.stages[0].finite);
   EXPECT_EQ(0, std::memcmp(sdf.data(), retarget.model().sdf(), sizeof(double) * sdf.size()));
@@ -210,13 +212,13 @@ TEST(Solver, RetargetingFitsPosesAndKeepsSharedParameters) {
 // A checkpoint written exactly at a bone re-initialisation batch (before the
 // batch's schedules run) resumes into that re-initialisation.
 TEST(Solver, ResumeAtABoneReinitBatchReinitializes) {
-  SolverConfig config = TinyConfig("adam", 6);
+  SolverConfig config = TinyConfig(StepRule::kAdam, 6);
   config.stages[0].schedule.bone_reinit_at = {0.5};  // batch 3
   ExpectResumeEqualsStraight(config, {3}, "banmo_resume_reinit_test");
 }
 
 SolverConfig AutoSizeConfig(int iterations) {
-  SolverConfig config = TinyConfig("adam", iterations);
+  SolverConfig config = TinyConfig(StepRule::kAdam, iterations);
   config.model.auto_size.enabled = true;
   config.model.auto_size.grow_at = {0.3, 0.6};
   config.model.auto_size.error_ratio = 1.0;  // some bone is always at or above the mean
@@ -273,7 +275,7 @@ TEST(Solver, ResumeAcrossAutoSizeGrowthIsBitwiseIdentical) {
 
 TEST(Checkpoint, RoundTripAndErrors) {
   const Dataset& data = TinyDataset();
-  const SolverConfig config = TinyConfig("adam", 1);
+  const SolverConfig config = TinyConfig(StepRule::kAdam, 1);
   std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
   model->sdf()[3] = 0.125;
   const std::string dir = ::testing::TempDir() + "/banmo_checkpoint_test";

@@ -41,7 +41,7 @@ inline const Dataset& TinyQuadrupedDataset(uint64_t seed = 1) {
 
 // One stage of `iterations` batches of 96 rays x 16 samples with the given
 // step rule, on a 4-bone model with small MLPs.
-inline SolverConfig TinySolverConfig(const std::string& step_rule, int iterations) {
+inline SolverConfig TinySolverConfig(StepRule step_rule, int iterations) {
   SolverConfig c;
   c.seed = 3;
   c.model.num_bones = 4;

@@ -80,7 +80,7 @@ TEST_P(StabilityTest, EveryBatchFinite) {
     StageConfig& stage = config.stages[s];
     stage.iterations = iterations[s];
     stage.batch_rays = 64;
-    stage.step_rule = c.step_rule;
+    stage.step_rule = *ParseEnum<StepRule>(c.step_rule);
     stage.sampling.flow_gaps = c.gaps;
     stage.log_every = 0;
   }

@@ -28,7 +28,7 @@ inline constexpr int kTinyTrainingBatches = 200;
 // IoU 0.48 with 50 %, 0.58 with 10 %, for the same 200 batches).
 inline const SolverConfig& TinyRenderConfig() {
   static const SolverConfig config = [] {
-    SolverConfig c = TinySolverConfig("adam", kTinyTrainingBatches);
+    SolverConfig c = TinySolverConfig(StepRule::kAdam, kTinyTrainingBatches);
     c.stages[0].sampling.foreground_fraction = 0.1;
     return c;
   }();

@@ -12,13 +12,45 @@
 
 #include "banmo/losses/ray.h"
 #include "banmo/model/model.h"
+#include "banmo/model/parameter_group.h"
+#include "banmo/util/enum_names.h"
 
 namespace banmo {
 
+// Typed options: each is read from its YAML name in one place
+// (util/enum_names.h); an unknown name is an error listing the choices.
+enum class StepRule { kAdam, kLm, kAlternate };
+enum class LinearSolverType { kCgnr, kIterativeSchur };
+enum class LrSchedule { kOneCycle, kConstant };
+enum class RobustLossType { kNone, kHuber, kCauchy, kSoftL1, kArctan, kTolerant };
+
+template <>
+struct EnumNames<StepRule> {
+  static constexpr std::pair<StepRule, const char*> kNames[] = {
+      {StepRule::kAdam, "adam"}, {StepRule::kLm, "lm"}, {StepRule::kAlternate, "alternate"}};
+};
+template <>
+struct EnumNames<LinearSolverType> {
+  static constexpr std::pair<LinearSolverType, const char*> kNames[] = {
+      {LinearSolverType::kCgnr, "cgnr"}, {LinearSolverType::kIterativeSchur, "iterative_schur"}};
+};
+template <>
+struct EnumNames<LrSchedule> {
+  static constexpr std::pair<LrSchedule, const char*> kNames[] = {
+      {LrSchedule::kOneCycle, "onecycle"}, {LrSchedule::kConstant, "constant"}};
+};
+template <>
+struct EnumNames<RobustLossType> {
+  static constexpr std::pair<RobustLossType, const char*> kNames[] = {
+      {RobustLossType::kNone, "none"},     {RobustLossType::kHuber, "huber"},
+      {RobustLossType::kCauchy, "cauchy"}, {RobustLossType::kSoftL1, "soft_l1"},
+      {RobustLossType::kArctan, "arctan"}, {RobustLossType::kTolerant, "tolerant"}};
+};
+
 // Robust loss applied to one loss term's residual block (Ceres LossFunction).
 struct RobustLossConfig {
-  std::string type = "none";  // none | huber | cauchy | soft_l1 | arctan | tolerant
-  double scale = 1.0;         // the loss's scale parameter a (> 0)
+  RobustLossType type = RobustLossType::kNone;
+  double scale = 1.0;  // the loss's scale parameter a (> 0)
 };
 
 // One loss term: weight (0 = off) and robust loss.
@@ -45,21 +77,21 @@ struct AdamConfig {
   double beta1 = 0.9;
   double beta2 = 0.999;
   double epsilon = 1e-8;
-  double weight_decay = 0.0;          // AdamW decoupled decay, MLP weights only
-  std::string schedule = "onecycle";  // onecycle | constant
-  double warmup_fraction = 0.1;       // one-cycle: fraction of iterations rising to lr
-  double final_lr_fraction = 0.01;    // one-cycle: lr at the end / lr
+  double weight_decay = 0.0;  // AdamW decoupled decay, MLP weights only
+  LrSchedule schedule = LrSchedule::kOneCycle;
+  double warmup_fraction = 0.1;     // one-cycle: fraction of iterations rising to lr
+  double final_lr_fraction = 0.01;  // one-cycle: lr at the end / lr
   // Per-group learning-rate multipliers (pose blocks like a larger step).
   double pose_lr_scale = 1.0;
   double bone_lr_scale = 1.0;
 };
 
 struct LmConfig {
-  int max_cg_iterations = 15;          // CGNR iterations per LM step
-  double initial_radius = 1e3;         // Ceres initial trust-region radius
-  double max_radius = 1e6;             // cap of the radius carried between batches
-  std::string linear_solver = "cgnr";  // cgnr | iterative_schur
-  int iterations_per_batch = 1;        // LM iterations on one minibatch
+  int max_cg_iterations = 15;   // CGNR iterations per LM step
+  double initial_radius = 1e3;  // Ceres initial trust-region radius
+  double max_radius = 1e6;      // cap of the radius carried between batches
+  LinearSolverType linear_solver = LinearSolverType::kCgnr;
+  int iterations_per_batch = 1;  // LM iterations on one minibatch
 };
 
 struct SamplingConfig {
@@ -80,17 +112,16 @@ struct ScheduleConfig {
   double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)
 };
 
-// Parameter groups that can be held constant (ceres SetParameterBlockConstant).
-// Names: sdf, color, embedding, log_beta, appearance, root, bones, bones_t, intrinsics,
-// delta_skinning, pose_code (docs/config.md).
+// Parameter groups held constant (ceres SetParameterBlockConstant):
+// model/parameter_group.h, docs/config.md.
 struct StageConfig {
   std::string name = "stage";
-  int iterations = 100;            // minibatches
-  std::string step_rule = "adam";  // adam | lm | alternate
+  int iterations = 100;  // minibatches
+  StepRule step_rule = StepRule::kAdam;
   int batch_rays = 1024;
   int samples_per_ray = 32;
   LossesConfig losses;
-  std::vector<std::string> constant = {"intrinsics"};
+  std::vector<ParameterGroup> constant = {ParameterGroup::kIntrinsics};
   AdamConfig adam;
   LmConfig lm;
   SamplingConfig sampling;

@@ -38,6 +38,11 @@
 
 namespace banmo {
 
+class RayBatch;
+class RaySampler;
+class StageProblem;
+struct SolverState;
+
 // A model for `dataset`: cameras and frame counts from the data, the scene
 // scale s from options.scene_scale or estimated from the data
 // (optim/scene_scale.h), G0^t from the dataset's rough root poses with their
@@ -76,7 +81,7 @@ struct SolveOptions {
   bool quiet = false;   // no progress lines
   // Parameter groups held constant in every stage on top of the stage's own
   // (retargeting freezes the shared ones).
-  std::vector<std::string> extra_constant;
+  std::vector<ParameterGroup> extra_constant;
   // Stop after this many batches in total (for tests of resume; <0 = no limit).
   int stop_after_batches = -1;
   // Adam's gradient from ceres::Problem::Evaluate (full per-row Jacobians of
@@ -122,8 +127,28 @@ class Solver {
   SolveResult Run(const SolveOptions& options);
 
  private:
-  struct State;
-  SolveResult RunStages(const SolveOptions& options, State* state);
+  struct RunContext;
+  struct StageRun;
+  SolveResult RunStages(const SolveOptions& options, SolverState* state);
+  // One stage; false when the run was interrupted (checkpoint written).
+  bool RunStage(int stage, RunContext* c, SolveResult* result);
+  // One batch: schedules, minibatch, step, progress, checkpoint.
+  void RunBatch(int iteration, StageRun* run, StageProblem* problem, RunContext* c,
+                SolveResult* result);
+  // Annealing, bounds refresh, bone re-initialisation, automatic sizing.
+  void RunSchedules(int iteration, double fraction, const StageRun& run, StageProblem* problem,
+                    RunContext* c, SolveResult* result);
+  void Grow(int iteration, const StageRun& run, StageProblem* problem, RunContext* c,
+            SolveResult* result);
+  // The minibatch's rays (with importance-resampled depths when the stage
+  // asks for them).
+  std::vector<Ray> SampleRays(const StageConfig& stage, const RayBatch& batch, RaySampler* sampler,
+                              std::mt19937* rng);
+  void ReportBatch(int iteration, const StageRun& run, const TermLosses& losses,
+                   const RunContext& c) const;
+  void NameBlocks(RunContext* c);
+  // Writes out_dir/checkpoint (nothing without out_dir).
+  void Save(int stage, int iteration, RunContext* c);
   // Canonical bounds from a coarse extraction of the current surface (10 %
   // margin, within [-2, 2]^3); unchanged if the level set is empty.
   void RefreshBounds();
@@ -131,7 +156,7 @@ class Solver {
   // extraction), bone transforms reset to the identity, MLP_Delta's output
   // layer reset to zero (its logits belonged to the old bones), their Adam
   // moments cleared.
-  void ReinitializeBones(State* state);
+  void ReinitializeBones(SolverState* state);
 
   const Dataset& dataset_;
   const SolverConfig& config_;

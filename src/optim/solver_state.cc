@@ -1,0 +1,91 @@
+#include "solver_state.h"
+
+#include <cstring>
+#include <sstream>
+
+#include "banmo/util/error.h"
+
+namespace banmo {
+namespace {
+
+void AppendPod(std::string* out, const void* data, size_t bytes) {
+  out->append(static_cast<const char*>(data), bytes);
+}
+template <typename T>
+void Append(std::string* out, const T& v) {
+  AppendPod(out, &v, sizeof(T));
+}
+template <typename T>
+T Read(const std::string& in, size_t* pos) {
+  if (*pos + sizeof(T) > in.size()) ThrowInputError("checkpoint state.bin: truncated");
+  T v;
+  std::memcpy(&v, in.data() + *pos, sizeof(T));
+  *pos += sizeof(T);
+  return v;
+}
+
+}  // namespace
+
+std::string SolverState::Serialize() const {
+  std::string out = "BANMOST1";
+  Append(&out, stage);
+  Append(&out, iteration);
+  Append(&out, total_batches);
+  Append(&out, lm_radius);
+  std::ostringstream rs;
+  rs << rng;
+  const std::string r = rs.str();
+  Append(&out, static_cast<uint64_t>(r.size()));
+  out += r;
+  Append(&out, static_cast<uint64_t>(adam.size()));
+  for (const auto& [name, mo] : adam) {
+    Append(&out, static_cast<uint64_t>(name.size()));
+    out += name;
+    Append(&out, static_cast<uint64_t>(mo.m.size()));
+    AppendPod(&out, mo.m.data(), sizeof(double) * mo.m.size());
+    AppendPod(&out, mo.v.data(), sizeof(double) * mo.v.size());
+    Append(&out, mo.steps);
+  }
+  Append(&out, static_cast<uint64_t>(error_cache.size()));
+  AppendPod(&out, error_cache.data(), sizeof(RaySampler::CachedPixel) * error_cache.size());
+  for (int k = 0; k < 3; ++k) Append(&out, bounds.min()[k]);
+  for (int k = 0; k < 3; ++k) Append(&out, bounds.max()[k]);
+  return out;
+}
+
+void SolverState::Deserialize(const std::string& in) {
+  if (in.compare(0, 8, "BANMOST1") != 0) ThrowInputError("checkpoint state.bin: bad header");
+  size_t pos = 8;
+  stage = Read<int>(in, &pos);
+  iteration = Read<int>(in, &pos);
+  total_batches = Read<int>(in, &pos);
+  lm_radius = Read<double>(in, &pos);
+  const uint64_t rn = Read<uint64_t>(in, &pos);
+  std::istringstream rs(in.substr(pos, rn));
+  rs >> rng;
+  pos += rn;
+  const uint64_t na = Read<uint64_t>(in, &pos);
+  adam.clear();
+  for (uint64_t i = 0; i < na; ++i) {
+    const uint64_t ln = Read<uint64_t>(in, &pos);
+    const std::string name = in.substr(pos, ln);
+    pos += ln;
+    const uint64_t n = Read<uint64_t>(in, &pos);
+    Moments mo;
+    mo.m.resize(n);
+    mo.v.resize(n);
+    for (auto& x : mo.m) x = Read<double>(in, &pos);
+    for (auto& x : mo.v) x = Read<double>(in, &pos);
+    mo.steps = Read<int64_t>(in, &pos);
+    adam[name] = std::move(mo);
+  }
+  const uint64_t nc = Read<uint64_t>(in, &pos);
+  error_cache.resize(nc);
+  for (auto& c : error_cache) c = Read<RaySampler::CachedPixel>(in, &pos);
+  Eigen::Vector3d lo, hi;
+  for (int k = 0; k < 3; ++k) lo[k] = Read<double>(in, &pos);
+  for (int k = 0; k < 3; ++k) hi[k] = Read<double>(in, &pos);
+  bounds = Eigen::AlignedBox3d(lo, hi);
+}
+
+}  // namespace banmo
