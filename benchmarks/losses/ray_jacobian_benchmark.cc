@@ -1,5 +1,5 @@
 // Rays per second of Jacobian assembly (residuals + Jacobians of every loss
-// term of a ray): the batched mixed-mode path (RayBatch, DESIGN.md Sec. 5)
+// term of a ray): the batched mixed-mode path (RayBatch, docs/design.md)
 // against the full-Jet reference, at MLP width 16/32/64, 32 samples per ray,
 // 8 bones, all losses on, positional encoding with 6 bands, 3 hidden SDF
 // layers; second argument: delta skinning off/on (MLP_Delta of the same

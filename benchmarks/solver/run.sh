@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Speed against error and stability (issue 6), one command:
+# Speed against error and stability, one command:
 #   bash benchmarks/solver/run.sh [--quick] [--fox] [--resume] [--only NAME,NAME] [--no-stability]
 #                                 [--no-compare]
 # Builds banmo and banmo_trace, makes the named scenes (scenes.txt, cached),

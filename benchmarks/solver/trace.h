@@ -1,4 +1,4 @@
-// Speed-against-error traces of the solver (issue 6): config overrides on the
+// Speed-against-error traces of the solver: config overrides on the
 // command line, finiteness checks of a model, and the trace CSV. Used by
 // banmo_trace (trace_main.cc); benchmarks/solver/README.md has the whole
 // harness.

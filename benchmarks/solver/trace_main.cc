@@ -1,6 +1,6 @@
 // banmo_trace: runs the solver on a dataset with a config (plus overrides)
 // and records, at checkpoints, time and iteration against loss, Chamfer
-// distance and F-scores (banmo protocol) into a CSV (issue 6). A separate
+// distance and F-scores (banmo protocol) into a CSV. A separate
 // benchmark program rather than a `banmo` subcommand: it is measurement
 // tooling for the comparisons in benchmarks/solver/, not a user-facing step
 // of the pipeline. benchmarks/solver/README.md documents it.

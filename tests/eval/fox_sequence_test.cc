@@ -1,4 +1,4 @@
-// End-to-end check of `banmo eval` on the Fox (issue 4, "done when"): a small
+// End-to-end check of `banmo eval` on the Fox (docs/eval.md): a small
 // Fox sequence rendered in memory by the synth library is compared with a
 // perturbed copy of itself through the built `banmo eval` binary, in both
 // protocols. The perturbation is Gaussian vertex noise plus a small rigid

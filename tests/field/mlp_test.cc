@@ -20,7 +20,7 @@ using test::ScaledError;
 // Tolerances. The batched and templated paths compute the same exact
 // derivatives (no approximation), and differ only in floating-point
 // summation order (GEMM blocking, per-group sums of ~10-40 samples of O(1)
-// terms): observed differences are ~1e-15 relative, so 1e-9 (the DESIGN.md
+// terms): observed differences are ~1e-15 relative, so 1e-9 (the docs/design.md
 // target for residual Jacobians) catches any real error (a wrong term is
 // O(1e-3) or more) with ample margin. Values: 1e-12.
 constexpr double kValueTol = 1e-12;
@@ -257,7 +257,7 @@ TEST(Mlp, GradientCheckerAgreesWithBackward) {
     auto cost = std::make_unique<MlpCost>(&mlp);
     ceres::NumericDiffOptions numeric;
     // Sharp softplus (beta = 100): a small initial Ridders step avoids false
-    // failures (DESIGN.md Sec. 5).
+    // failures (docs/design.md).
     numeric.ridders_relative_initial_step_size = 1e-4;
     const std::vector<const ceres::Manifold*>* no_manifolds = nullptr;
     ceres::GradientChecker checker(cost.get(), no_manifolds, numeric);

@@ -73,7 +73,7 @@ TEST_P(RayTermJacobian, AgreesWithNumericDifferentiation) {
   RayBatch& batch = *scene.batch;
   ceres::NumericDiffOptions numeric;
   // Softplus with beta = 100 is sharp: Ridders' extrapolation from a small
-  // first step (DESIGN.md Sec. 5: the default 1e-2 gives false failures).
+  // first step (docs/design.md: the default 1e-2 gives false failures).
   numeric.ridders_relative_initial_step_size = 1e-4;
   for (int r = 0; r < 2; ++r) {
     auto cost = batch.MakeCostFunction(r, term);

@@ -1,4 +1,4 @@
-// Quick part of the stability suite (issue 6): each hard case is a short run
+// Quick part of the stability suite: each hard case is a short run
 // (problems/tiny.yaml's three stages cut to 20 + 4 + 8 batches of 64 rays) on
 // a tiny scene rendered in memory, and every batch's losses and every
 // parameter must stay finite. The full runs, with their final Chamfer

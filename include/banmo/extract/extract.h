@@ -1,4 +1,4 @@
-// Meshes from a BANMo model (DESIGN.md sections 3 and 6, issue 5
+// Meshes from a BANMo model (docs/extract.md
 // "Extraction"): the canonical surface (zero level set of the SDF MLP) by
 // marching cubes, its vertex colours, articulated per-frame meshes in each
 // frame's camera coordinates, and bones and skinning weights for inspection.

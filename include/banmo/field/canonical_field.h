@@ -10,7 +10,7 @@
 //     the full-Jet reference;
 //   - batched double (ForwardBatch/BackwardBatch, ...): values, input
 //     Jacobians and per-group (per-ray) weight gradients for the ray cost
-//     functions and their ceres::EvaluationCallback (DESIGN.md Sec. 5).
+//     functions and their ceres::EvaluationCallback (docs/design.md).
 #pragma once
 
 #include <Eigen/Core>

@@ -6,7 +6,7 @@
 //     tangents (input JVPs), reverse mode with per-group weight gradients
 //     (one group = one ray's samples), and reverse mode of the tangent (the
 //     eikonal term's weight gradient).
-// See DESIGN.md Sec. 5 (mixed-mode autodiff).
+// See docs/design.md (mixed-mode derivatives).
 //
 // Architecture: hidden_layers hidden layers of `width` units with the chosen
 // activation, then a linear output layer:

@@ -1,4 +1,4 @@
-// Animatable glTF 2.0 export of a BANMo model (issue 7, docs/export.md).
+// Animatable glTF 2.0 export of a BANMo model (docs/export.md).
 //
 // The model's forward warp (deform/bones.h, extract/extract.h) is linear
 // blend skinning with rest-bone weights followed by the root pose:

@@ -1,6 +1,6 @@
 // 3D cycle-consistency loss (BANMo Sec. 3.4, Eq. 19), per ray sample i:
 //   r_i = sqrt(w tau_i) (W^{t,->}(W^{t,<-}(X_i^t)) - X_i^t),   dimension 3,
-// backward to canonical, then forward back (DESIGN.md's reading of the
+// backward to canonical, then forward back (docs/design.md: the reading of the
 // paper's slip), with tau_i a constant weight (no gradient through it).
 // X_i^t and the cycled point are in camera coordinates of frame t.
 #pragma once

@@ -2,7 +2,7 @@
 //   F(x^t, t->t') = x^{t'} - x^t,
 //   x^{t'} = sum_i tau_i Pi^{t'}(W^{t',->}(X_i^*))  + (1 - o) x^t,
 //   r = sqrt(w) (F - F_hat),   dimension 2 (pixels).
-// Eq. 6 pushes X_i^* with the forward warp of t' (DESIGN.md's reading of the
+// Eq. 6 pushes X_i^* with the forward warp of t' (docs/design.md: the reading of the
 // paper's slip). The (1 - o) x^t term lets transparent rays predict zero
 // flow; on object pixels o ~ 1 and it vanishes. The caller passes the
 // expected displacement sum_i tau_i (x_i^{t'} - x^t).

@@ -1,4 +1,4 @@
-// Mixed-mode, batched evaluation of a minibatch of rays (DESIGN.md Sec. 5).
+// Mixed-mode, batched evaluation of a minibatch of rays (docs/design.md).
 //
 // A RayBatch is the ceres::EvaluationCallback of a problem: before Ceres
 // evaluates residual blocks at a new point, PrepareForEvaluation pushes every

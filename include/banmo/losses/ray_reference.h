@@ -2,7 +2,7 @@
 // (losses/ray_functors.h, deform/bones.h, field/canonical_field.h) evaluated
 // with Jets over EVERY parameter of the term, MLP weights included, through
 // ceres::DynamicAutoDiffCostFunction. Correct by construction and slow (its
-// cost grows with the number of weights, DESIGN.md Sec. 5): it is the
+// cost grows with the number of weights, docs/design.md): it is the
 // regression reference the mixed-mode RayBatch must equal, and the baseline of
 // the Jacobian-assembly benchmark.
 #pragma once

@@ -1,5 +1,5 @@
 // The BANMo model's parameters: every Ceres parameter block lives here and
-// persists across minibatches (DESIGN.md sections 3 and 6).
+// persists across minibatches (docs/design.md).
 //
 // Blocks and their storage (all doubles):
 //   sdf, color, embedding     MLP weights of the canonical fields (field/canonical_field.h)

@@ -1,4 +1,4 @@
-// Automatic model sizing (issue 6; docs/solver.md "Automatic model sizing"):
+// Automatic model sizing (docs/solver.md "Automatic model sizing"):
 // the model starts small and, at the fractions model.auto_size.grow_at of
 // the first stage, grows where the residuals stay high.
 //

@@ -1,5 +1,5 @@
-// Solver configuration: the model's sizes and a list of stages (DESIGN.md
-// Sec. 6), read from YAML files in problems/. YAML keys equal the struct
+// Solver configuration: the model's sizes and a list of stages (docs/config.md,
+// docs/solver.md), read from YAML files in problems/. YAML keys equal the struct
 // field names below; an unknown key, a wrong type or a violated constraint is
 // an InputError naming the file, the key path (e.g. "stages[1].adam.lr") and
 // what was expected. The resolved configuration (every default filled in) is

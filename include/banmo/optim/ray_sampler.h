@@ -1,4 +1,4 @@
-// Minibatches of pixel rays drawn from a dataset (DESIGN.md Sec. 2, 6):
+// Minibatches of pixel rays drawn from a dataset (docs/solver.md):
 // a fresh random set per batch, part inside the object mask, part uniform
 // over the image, part "active" (near pixels whose residuals were large in
 // earlier batches), each with a random flow partner frame and stratified

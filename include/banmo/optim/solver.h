@@ -1,4 +1,4 @@
-// The stage-by-stage solver (DESIGN.md Sec. 6): for each stage of the
+// The stage-by-stage solver (docs/solver.md, docs/design.md): for each stage of the
 // config, minibatches of rays become residual blocks of one persistent
 // ceres::Problem (parameter blocks, manifolds and constant groups are set up
 // once per stage; the batch's residual blocks are replaced every iteration),

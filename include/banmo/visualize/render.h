@@ -1,5 +1,5 @@
 // Images of a model for one dataset frame, rendered by the training pipeline
-// itself (issue 7, `banmo render`): every pixel becomes a Ray (losses/ray.h)
+// itself (`banmo render`, docs/render.md): every pixel becomes a Ray (losses/ray.h)
 // carrying the observed colour and flow, RayBatch::EvaluateRays evaluates it
 // exactly as the losses do (jacobians off), and with unit weights on the rgb,
 // silhouette and flow terms the rendered values are
