@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "banmo/deform/bone_centres.h"
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/io/npy.h"
 #include "banmo/util/error.h"
