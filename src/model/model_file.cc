@@ -288,12 +288,12 @@ void WriteVector3(YAML::Emitter& out, const Eigen::Vector3d& v) {
   out << YAML::EndSeq;
 }
 
-Eigen::Vector3d ReadVector3(const std::string& source, const std::string& path,
-                            const YAML::Node& node) {
+// node[key], 3 numbers.
+Eigen::Vector3d ReadVector3(const std::string& source, const YAML::Node& node, const char* key) {
   std::vector<double> v;
-  OptionsReader(source, path, node).ReadInto(&v);
+  ReadRequired(source, node, key, &v);
   if (v.size() != 3) {
-    ThrowInputError(source, ": key '", path, "': expected 3 numbers, got ", v.size(), kWhatToDo);
+    ThrowInputError(source, ": key '", key, "': expected 3 numbers, got ", v.size(), kWhatToDo);
   }
   return Eigen::Vector3d(v[0], v[1], v[2]);
 }
@@ -364,7 +364,9 @@ std::string ResolveModelFolder(const std::string& dir) {
   return dir;
 }
 
-std::unique_ptr<Model> ReadModelFiles(const std::string& dir) {
+namespace {
+
+std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   const std::string yaml_path = dir + "/model.yaml";
   if (!std::filesystem::exists(yaml_path)) {
     ThrowInputError(dir, ": not a model folder (no model.yaml)", kWhatToDo);
@@ -483,8 +485,8 @@ std::unique_ptr<Model> ReadModelFiles(const std::string& dir) {
   const YAML::Node bounds = root["canonical_bounds"];
   if (!legacy && bounds.IsDefined()) {
     const std::string source = yaml_path + " (canonical_bounds)";
-    const Eigen::Vector3d lo = ReadVector3(source, "min", IsMap(bounds) ? bounds["min"] : bounds);
-    const Eigen::Vector3d hi = ReadVector3(source, "max", IsMap(bounds) ? bounds["max"] : bounds);
+    const Eigen::Vector3d lo = ReadVector3(source, bounds, "min");
+    const Eigen::Vector3d hi = ReadVector3(source, bounds, "max");
     if (!((hi - lo).array() > 0.0).all()) {
       ThrowInputError(source, ": expected max > min on every axis", kWhatToDo);
     }
@@ -513,6 +515,16 @@ std::unique_ptr<Model> ReadModelFiles(const std::string& dir) {
     p += sizeof(double) * size;
   });
   return model;
+}
+
+}  // namespace
+
+std::unique_ptr<Model> ReadModelFiles(const std::string& dir) {
+  try {
+    return ReadModelFilesUnguarded(dir);
+  } catch (const YAML::Exception& e) {  // a shape the checks above did not foresee
+    ThrowInputError(dir, "/model.yaml: malformed (", e.what(), "): the file is damaged", kWhatToDo);
+  }
 }
 
 std::unique_ptr<Model> LoadModel(const std::string& dir) {

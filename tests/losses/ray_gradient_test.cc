@@ -11,7 +11,7 @@
 #include <set>
 
 #include "banmo/losses/ray_batch.h"
-#include "banmo/losses/test_scene.h"
+#include "common/test_scene.h"
 #include "jacobian_test_util.h"
 
 namespace banmo {

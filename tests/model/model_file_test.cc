@@ -154,6 +154,20 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   EXPECT_EQ(back->training_sampling()->near_far_margin, 0.15);
   EXPECT_TRUE(back->training_sampling()->importance_depth);
   ExpectSameModel(*model, *back);
+
+  // A box without its max, or with max <= min, is an error naming the key.
+  const std::string yaml = ReadText(dir / "model.yaml");
+  const size_t max_line = yaml.find("  max: ");
+  ASSERT_NE(max_line, std::string::npos) << yaml;
+  std::string no_max = yaml;
+  no_max.erase(max_line, yaml.find('\n', max_line) + 1 - max_line);
+  std::ofstream(dir / "model.yaml") << no_max;
+  EXPECT_NE(LoadError(dir).find("(canonical_bounds): missing key 'max'"), std::string::npos)
+      << LoadError(dir);
+  model->set_canonical_bounds(
+      Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 1)));
+  WriteModelFiles(dir.string(), *model);
+  EXPECT_NE(LoadError(dir).find("expected max > min"), std::string::npos) << LoadError(dir);
 }
 
 TEST(ModelFile, FallsBackToTheOldFolderOfAnInterruptedSave) {
