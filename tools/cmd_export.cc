@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "banmo/gltf/export.h"
-#include "banmo/optim/checkpoint.h"
+#include "banmo/model/model_file.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
@@ -113,8 +113,7 @@ int RunExport(int argc, char** argv) {
   }
 
   Timer total;
-  CheckpointInfo info;
-  const std::unique_ptr<Model> model = LoadCheckpoint(model_dir, &info);
+  const std::unique_ptr<Model> model = LoadModel(model_dir);
   if (!names.empty()) {
     options.video_names = SplitCommas(names);
     if (static_cast<int>(options.video_names.size()) != model->num_videos()) {
@@ -127,9 +126,8 @@ int RunExport(int argc, char** argv) {
   for (int v = 0; v < model->num_videos(); ++v) {
     num_frames += static_cast<int>(model->video(v).frames.size());
   }
-  std::printf("model %s: %d videos, %d frames, %d bones (stage %d, iteration %d)\n",
-              model_dir.c_str(), model->num_videos(), num_frames, model->num_bones(), info.stage,
-              info.iteration);
+  std::printf("model %s: %d videos, %d frames, %d bones\n", model_dir.c_str(), model->num_videos(),
+              num_frames, model->num_bones());
   std::fflush(stdout);
   const GltfExportSummary s = ExportGltf(*model, options, out_path, [](const std::string& line) {
     std::fprintf(stderr, "  %s\n", line.c_str());

@@ -8,35 +8,15 @@
 #include <vector>
 
 #include "banmo/extract/extract.h"
-#include "banmo/optim/checkpoint.h"
+#include "banmo/model/model_file.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
+#include "cli_options.h"
 #include "command.h"
 
 namespace banmo {
 namespace {
-
-// "xmin,ymin,zmin,xmax,ymax,zmax" -> options->grid.bounds_min/max.
-void ParseBounds(const std::string& text, GridOptions* grid) {
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      v.push_back(std::stod(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      ThrowInputError("--bounds '", text, "': '", item, "' is not a number");
-    }
-  }
-  if (v.size() != 6) {
-    ThrowInputError("--bounds '", text, "': expected 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
-  }
-  grid->bounds_min = Eigen::Vector3d(v[0], v[1], v[2]);
-  grid->bounds_max = Eigen::Vector3d(v[3], v[4], v[5]);
-}
 
 int RunExtract(int argc, char** argv) {
   CLI::App app{
@@ -79,21 +59,21 @@ int RunExtract(int argc, char** argv) {
 
   if (threads < 0) ThrowInputError("--threads: expected >= 0, got ", threads);
   if (threads > 0) SetNumThreads(threads);
-  ParseBounds(bounds, &options.grid);
+  const Eigen::AlignedBox3d box = tools::ParseBoxOption("--bounds", bounds);
+  options.grid.bounds_min = box.min();
+  options.grid.bounds_max = box.max();
   options.keep_largest_component = !all_components;
   options.Check();
 
   Timer total;
-  CheckpointInfo info;
-  const std::unique_ptr<Model> model = LoadCheckpoint(model_dir, &info);
+  const std::unique_ptr<Model> model = LoadModel(model_dir);
   options.frames = ParseFrameSelection(frames, *model, "--frames");
   int num_frames = 0;
   for (int v = 0; v < model->num_videos(); ++v) {
     num_frames += static_cast<int>(model->video(v).frames.size());
   }
-  std::printf("model %s: %d videos, %d frames, %d bones (stage %d, iteration %d)\n",
-              model_dir.c_str(), model->num_videos(), num_frames, model->num_bones(), info.stage,
-              info.iteration);
+  std::printf("model %s: %d videos, %d frames, %d bones\n", model_dir.c_str(), model->num_videos(),
+              num_frames, model->num_bones());
   const GridShape shape = ComputeGridShape(options.grid);
   std::printf("marching cubes on %dx%dx%d cells...\n", shape.cells.x(), shape.cells.y(),
               shape.cells.z());

@@ -11,42 +11,16 @@
 
 #include "banmo/extract/extract.h"
 #include "banmo/io/dataset.h"
-#include "banmo/optim/checkpoint.h"
-#include "banmo/optim/config.h"
+#include "banmo/model/model_file.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
 #include "banmo/visualize/sequence.h"
+#include "cli_options.h"
 #include "command.h"
 
 namespace banmo {
 namespace {
-
-// "auto" or "xmin,ymin,zmin,xmax,ymax,zmax".
-bool ParseBoundsOption(const std::string& text, Eigen::AlignedBox3d* box) {
-  if (text == "auto") return false;
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      v.push_back(std::stod(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      ThrowInputError("--bounds '", text, "': '", item, "' is not a number");
-    }
-  }
-  if (v.size() != 6) {
-    ThrowInputError("--bounds '", text,
-                    "': expected 'auto' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
-  }
-  *box = Eigen::AlignedBox3d(Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]));
-  if ((box->sizes().array() <= 0.0).any()) {
-    ThrowInputError("--bounds '", text, "': expected max > min on every axis");
-  }
-  return true;
-}
 
 std::string Num(double x) {
   if (std::isnan(x)) return "  n/a";
@@ -133,24 +107,24 @@ int RunRender(int argc, char** argv) {
   if (importance != "auto" && importance != "on" && importance != "off") {
     ThrowInputError("--importance: expected auto, on or off, got '", importance, "'");
   }
-  const bool explicit_bounds = ParseBoundsOption(bounds_text, &options.frame.canonical_bounds);
+  const bool explicit_bounds = bounds_text != "auto";
+  if (explicit_bounds) {
+    options.frame.canonical_bounds = tools::ParseBoxOption(
+        "--bounds", bounds_text, "'auto' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
+  }
   if (std::filesystem::exists(out_dir) && !std::filesystem::is_directory(out_dir)) {
     ThrowInputError("--out ", out_dir, ": exists and is not a folder");
   }
 
   Timer total;
-  CheckpointInfo info;
-  const std::unique_ptr<Model> model = LoadCheckpoint(model_dir, &info);
-  // Sampling as the model was trained (the last stage of its config).
+  const std::unique_ptr<Model> model = LoadModel(model_dir);
+  // Sampling as the model was trained (the last stage of its solver config).
   bool trained_importance = false;
-  if (info.config.find_first_not_of(" \t\r\n") != std::string::npos) {
-    const SolverConfig config = ParseSolverConfig(info.config, model_dir + "/model.yaml");
-    if (!config.stages.empty()) {
-      const StageConfig& last = config.stages.back();
-      options.frame.samples_per_ray = last.samples_per_ray;
-      options.frame.near_far_margin = last.sampling.near_far_margin;
-      trained_importance = last.sampling.importance_depth;
-    }
+  if (model->training_sampling()) {
+    const TrainingSampling& trained = *model->training_sampling();
+    options.frame.samples_per_ray = trained.samples_per_ray;
+    options.frame.near_far_margin = trained.near_far_margin;
+    trained_importance = trained.importance_depth;
   }
   if (samples > 0) options.frame.samples_per_ray = samples;
   options.frame.importance = importance == "on" || (importance == "auto" && trained_importance);
@@ -195,12 +169,12 @@ int RunRender(int argc, char** argv) {
   if (!explicit_bounds) options.frame.canonical_bounds = CanonicalBoundsFromSurface(*model);
   const Eigen::AlignedBox3d& b = options.frame.canonical_bounds;
   std::printf(
-      "model %s (stage %d, iteration %d): %d videos, %d bones; %zu frames to render, %d samples "
-      "per ray%s, canonical bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
-      model_dir.c_str(), info.stage, info.iteration, model->num_videos(), model->num_bones(),
-      frames.size(), options.frame.samples_per_ray,
-      options.frame.importance ? " (+ importance resampling)" : "", b.min().x(), b.min().y(),
-      b.min().z(), b.max().x(), b.max().y(), b.max().z(), explicit_bounds ? "" : " (auto)");
+      "model %s: %d videos, %d bones; %zu frames to render, %d samples per ray%s, canonical "
+      "bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
+      model_dir.c_str(), model->num_videos(), model->num_bones(), frames.size(),
+      options.frame.samples_per_ray, options.frame.importance ? " (+ importance resampling)" : "",
+      b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z(),
+      explicit_bounds ? "" : " (auto)");
   std::fflush(stdout);
 
   const SequenceSummary summary = RenderSequence(

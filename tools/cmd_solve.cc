@@ -6,9 +6,10 @@
 #include <string>
 
 #include "banmo/io/dataset.h"
+#include "banmo/model/scene_scale.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/config.h"
-#include "banmo/optim/scene_scale.h"
+#include "banmo/optim/load_options.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
@@ -74,16 +75,8 @@ int RunSolve(int argc, char** argv) {
                     ": folder exists and is not empty (use --overwrite or --resume)");
   }
 
-  LoadOptions load;
-  load.load_features = false;
-  load.load_flow = false;
-  for (const StageConfig& s : config.stages) {
-    load.load_features = load.load_features || s.losses[LossTerm::kFeatureMatch].weight > 0 ||
-                         s.losses[LossTerm::kCycle2d].weight > 0;
-    load.load_flow = load.load_flow || s.losses[LossTerm::kFlow].weight > 0;
-  }
   Timer timer;
-  const Dataset dataset = LoadDataset(data_dir, load);
+  const Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
   std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
               dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
   // Inputs are valid: only now is anything written.
@@ -118,7 +111,7 @@ int RunSolve(int argc, char** argv) {
   options.resume = resume;
   options.quiet = quiet;
   if (source != nullptr) {
-    CopySharedParameters(*source, model.get(), retarget_dir);  // optim/solver.h
+    CopySharedParameters(*source, model.get(), retarget_dir);  // model/make_model.h
     options.extra_constant = {ParameterGroup::kSdf,       ParameterGroup::kColor,
                               ParameterGroup::kEmbedding, ParameterGroup::kLogBeta,
                               ParameterGroup::kBones,     ParameterGroup::kDeltaSkinning};

@@ -14,7 +14,7 @@
 
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
-#include "banmo/losses/test_scene.h"
+#include "common/test_scene.h"
 
 namespace banmo {
 namespace {

@@ -18,6 +18,7 @@
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/io/dataset.h"
 #include "banmo/optim/config.h"
+#include "banmo/optim/load_options.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
@@ -114,15 +115,7 @@ int Run(int argc, char** argv) {
   SolverConfig config = ParseConfigWithOverrides(text.str(), o.overrides, o.config_path);
   if (o.threads >= 0) config.threads = o.threads;
 
-  LoadOptions load;
-  load.load_features = false;
-  load.load_flow = false;
-  for (const StageConfig& s : config.stages) {
-    load.load_features = load.load_features || s.losses[LossTerm::kFeatureMatch].weight > 0 ||
-                         s.losses[LossTerm::kCycle2d].weight > 0;
-    load.load_flow = load.load_flow || s.losses[LossTerm::kFlow].weight > 0;
-  }
-  const Dataset dataset = LoadDataset(o.data_dir, load);
+  const Dataset dataset = LoadDataset(o.data_dir, DatasetLoadOptions(config));
   std::vector<EvalFrame> eval_frames;
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
     const Video& video = dataset.videos[v];

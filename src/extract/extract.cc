@@ -3,17 +3,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <map>
 #include <memory>
-#include <random>
 #include <set>
 #include <sstream>
 
 #include "banmo/deform/bones.h"
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/geometry/se3.h"
+#include "banmo/io/npy.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
@@ -43,27 +42,6 @@ bool ParseIndex(const std::string& s, int* out) {
   }
   *out = std::stoi(s);
   return true;
-}
-
-// .npy (format 1.0) of a row-major float32 matrix (rows x cols).
-std::string EncodeNpyFloat32(const std::vector<float>& data, int rows, int cols) {
-  std::ostringstream dict;
-  dict << "{'descr': '<f4', 'fortran_order': False, 'shape': (" << rows << ", " << cols << "), }";
-  std::string header = dict.str();
-  // Magic (6) + version (2) + length (2) + header, padded with spaces and a
-  // final newline to a multiple of 64 bytes.
-  const size_t unpadded = 10 + header.size() + 1;
-  header.append((64 - unpadded % 64) % 64, ' ');
-  header.push_back('\n');
-  std::string out("\x93NUMPY\x01\x00", 8);
-  const uint16_t len = static_cast<uint16_t>(header.size());
-  out.push_back(static_cast<char>(len & 0xff));
-  out.push_back(static_cast<char>(len >> 8));
-  out += header;
-  const size_t offset = out.size();
-  out.resize(offset + data.size() * sizeof(float));
-  std::memcpy(&out[offset], data.data(), data.size() * sizeof(float));  // little-endian host
-  return out;
 }
 
 // Unit icosphere, counter-clockwise seen from outside.
@@ -407,13 +385,12 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
     WritePly((out / "bones.ply").string(),
              MeshInDatasetUnits(model, BoneEllipsoids(model, options.bone_ellipsoid_sigmas,
                                                       options.bone_ellipsoid_subdivisions)));
-    std::vector<float> data(static_cast<size_t>(weights.size()));
+    // (vertices, B) float32, row-major.
+    cv::Mat data(canonical.NumVertices(), B, CV_32F);
     for (int i = 0; i < canonical.NumVertices(); ++i) {
-      for (int b = 0; b < B; ++b)
-        data[static_cast<size_t>(i) * B + b] = static_cast<float>(weights(b, i));
+      for (int b = 0; b < B; ++b) data.at<float>(i, b) = static_cast<float>(weights(b, i));
     }
-    WriteFileAtomic((out / "skinning_weights.npy").string(),
-                    EncodeNpyFloat32(data, canonical.NumVertices(), B));
+    WriteNpy((out / "skinning_weights.npy").string(), data, /*channel_axis=*/false);
   }
 
   const int num_frames = static_cast<int>(frames.size());
@@ -495,91 +472,15 @@ Eigen::AlignedBox3d SurfaceBounds(const Model& model, const Eigen::AlignedBox3d&
   return box;
 }
 
-std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, int num_bones,
-                                                    uint32_t seed) {
-  CHECK_GE(num_bones, 1);
-  const int V = mesh.NumVertices();
-  if (V < num_bones) {
-    ThrowInputError("bone initialisation: the surface has ", V, " vertices, fewer than the ",
-                    num_bones, " bones");
-  }
-  // Vertex weights: a third of the area of the incident faces (uniform if
-  // the mesh has no area), so the clustering does not depend on the
-  // tessellation density.
-  Eigen::VectorXd w = Eigen::VectorXd::Zero(V);
-  for (int f = 0; f < mesh.NumFaces(); ++f) {
-    const Eigen::Vector3d a = mesh.vertices.col(mesh.faces(0, f));
-    const Eigen::Vector3d b = mesh.vertices.col(mesh.faces(1, f));
-    const Eigen::Vector3d c = mesh.vertices.col(mesh.faces(2, f));
-    const double area = 0.5 * (b - a).cross(c - a).norm();
-    for (int k = 0; k < 3; ++k) w[mesh.faces(k, f)] += area / 3.0;
-  }
-  if (!(w.sum() > 0)) w.setOnes();
-
-  std::mt19937 rng(seed);
-  // Draws an index with probability proportional to p (own sampler: the
-  // standard distributions differ between library implementations).
-  auto draw = [&](const Eigen::VectorXd& p) {
-    const double total = p.sum();
-    const double u = (static_cast<double>(rng()) + 0.5) / 4294967296.0 * total;
-    double acc = 0.0;
-    for (int i = 0; i < V; ++i) {
-      acc += p[i];
-      if (u < acc) return i;
-    }
-    for (int i = V - 1; i >= 0; --i) {
-      if (p[i] > 0) return i;
-    }
-    return V - 1;
-  };
-
-  // k-means++ seeding.
-  std::vector<Eigen::Vector3d> centres;
-  centres.push_back(mesh.vertices.col(draw(w)));
-  Eigen::VectorXd d2(V);
-  for (int i = 0; i < V; ++i) d2[i] = (mesh.vertices.col(i) - centres[0]).squaredNorm();
-  while (static_cast<int>(centres.size()) < num_bones) {
-    const Eigen::VectorXd p = w.cwiseProduct(d2);
-    const int pick = p.sum() > 0 ? draw(p) : draw(w);
-    centres.push_back(mesh.vertices.col(pick));
-    for (int i = 0; i < V; ++i) {
-      d2[i] = std::min(d2[i], (mesh.vertices.col(i) - centres.back()).squaredNorm());
-    }
-  }
-
-  // Lloyd iterations.
-  std::vector<int> label(V, -1);
-  for (int iter = 0; iter < 50; ++iter) {
-    std::vector<char> changed_chunk(V, 0);
-    ParallelFor(V, [&](int begin, int end) {
-      for (int i = begin; i < end; ++i) {
-        int best = 0;
-        double best_d = std::numeric_limits<double>::infinity();
-        for (int b = 0; b < num_bones; ++b) {
-          const double d = (mesh.vertices.col(i) - centres[b]).squaredNorm();
-          if (d < best_d) {
-            best_d = d;
-            best = b;
-          }
-        }
-        if (best != label[i]) changed_chunk[i] = 1;
-        label[i] = best;
-      }
-    });
-    const bool changed =
-        std::any_of(changed_chunk.begin(), changed_chunk.end(), [](char c) { return c != 0; });
-    if (!changed) break;
-    std::vector<Eigen::Vector3d> sum(num_bones, Eigen::Vector3d::Zero());
-    std::vector<double> mass(num_bones, 0.0);
-    for (int i = 0; i < V; ++i) {
-      sum[label[i]] += w[i] * mesh.vertices.col(i);
-      mass[label[i]] += w[i];
-    }
-    for (int b = 0; b < num_bones; ++b) {
-      if (mass[b] > 0) centres[b] = sum[b] / mass[b];  // an empty cluster keeps its centre
-    }
-  }
-  return centres;
+Eigen::AlignedBox3d CanonicalBoundsFromSurface(const Model& model,
+                                               const Eigen::AlignedBox3d& search) {
+  const Eigen::AlignedBox3d surface = SurfaceBounds(model, search, 48);
+  if (surface.isEmpty()) return search;
+  const Eigen::Vector3d margin = 0.1 * surface.sizes() + Eigen::Vector3d::Constant(0.02);
+  Eigen::AlignedBox3d box(surface.min() - margin, surface.max() + margin);
+  box = box.intersection(
+      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0), Eigen::Vector3d::Constant(2.0)));
+  return box.isEmpty() ? search : box;
 }
 
 }  // namespace banmo

@@ -141,30 +141,41 @@ Pose Model::RootPose(int v, int t) const {
   return out;
 }
 
-void Model::ForEachBlock(
-    const std::function<void(const std::string& name, double* data, int size)>& fn) {
-  fn("sdf", sdf_.data(), sdf_size());
-  fn("color", color_.data(), color_size());
-  fn("embedding", embedding_.data(), embedding_size());
-  fn("log_beta", &log_beta_, 1);
-  fn("bones", bones_.data(), bones_size());
-  if (delta_) {
-    fn("delta_skinning", delta_params_.data(), delta_skinning_size());
-    fn("rest_pose_code", rest_pose_code_.data(), pose_code_size());
+template <class Self, class Fn>
+void Model::VisitBlocks(Self& self, const Fn& fn) {
+  fn("sdf", self.sdf_.data(), self.sdf_size());
+  fn("color", self.color_.data(), self.color_size());
+  fn("embedding", self.embedding_.data(), self.embedding_size());
+  fn("log_beta", &self.log_beta_, 1);
+  fn("bones", self.bones_.data(), self.bones_size());
+  if (self.delta_) {
+    fn("delta_skinning", self.delta_params_.data(), self.delta_skinning_size());
+    fn("rest_pose_code", self.rest_pose_code_.data(), self.pose_code_size());
   }
-  for (size_t v = 0; v < videos_.size(); ++v) {
-    const std::string video = "video" + std::to_string(v);
-    fn(video + "/intrinsics", videos_[v].intrinsics.data(), 4);
-    fn(video + "/appearance", videos_[v].appearance.data(), appearance_size());
-    for (size_t t = 0; t < videos_[v].frames.size(); ++t) {
-      FrameParameters& f = videos_[v].frames[t];
-      const std::string frame = video + "/frame" + std::to_string(t);
+  for (size_t v = 0; v < self.videos_.size(); ++v) {
+    auto& video = self.videos_[v];
+    const std::string name = "video" + std::to_string(v);
+    fn(name + "/intrinsics", video.intrinsics.data(), 4);
+    fn(name + "/appearance", video.appearance.data(), self.appearance_size());
+    for (size_t t = 0; t < video.frames.size(); ++t) {
+      auto& f = video.frames[t];
+      const std::string frame = name + "/frame" + std::to_string(t);
       fn(frame + "/root_delta", f.root_delta.data(), kPoseSize);
       fn(frame + "/root_init", f.root_init.data(), kPoseSize);
       fn(frame + "/bones_t", f.bones_t.data(), static_cast<int>(f.bones_t.size()));
-      if (delta_) fn(frame + "/pose_code", f.pose_code.data(), pose_code_size());
+      if (self.delta_) fn(frame + "/pose_code", f.pose_code.data(), self.pose_code_size());
     }
   }
+}
+
+void Model::ForEachBlock(
+    const std::function<void(const std::string& name, double* data, int size)>& fn) {
+  VisitBlocks(*this, fn);
+}
+
+void Model::ForEachBlock(
+    const std::function<void(const std::string& name, const double* data, int size)>& fn) const {
+  VisitBlocks(*this, fn);
 }
 
 void Model::SetBones(int num_bones, const std::vector<double>& bones) {

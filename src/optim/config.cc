@@ -21,6 +21,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "banmo/model/model_options_fields.h"
 #include "banmo/util/error.h"
 #include "banmo/util/format.h"
 #include "banmo/util/logging.h"
@@ -41,62 +42,7 @@ namespace {
 
 // ---- Field lists (keys = field names). ----
 
-template <class V>
-void VisitFields(V& v, PositionalEncodingOptions& o) {
-  v("num_bands", o.num_bands);
-  v("include_input", o.include_input);
-  v("base_frequency", o.base_frequency);
-}
-
-template <class V>
-void VisitFields(V& v, CanonicalFieldOptions& o) {
-  v("position_encoding", o.position_encoding);
-  v("sdf_width", o.sdf_width);
-  v("sdf_layers", o.sdf_layers);
-  v("geometry_feature_dim", o.geometry_feature_dim);
-  v("color_width", o.color_width);
-  v("color_layers", o.color_layers);
-  v("use_view_direction", o.use_view_direction);
-  v("view_encoding", o.view_encoding);
-  v("appearance_code_dim", o.appearance_code_dim);
-  v("embedding_width", o.embedding_width);
-  v("embedding_layers", o.embedding_layers);
-  v("activation", o.activation);
-  v("softplus_beta", o.softplus_beta);
-  v("init_sphere_radius", o.init_sphere_radius);
-}
-
-template <class V>
-void VisitFields(V& v, DeltaSkinningOptions& o) {
-  v("enabled", o.enabled);
-  v("width", o.width);
-  v("hidden_layers", o.hidden_layers);
-  v("num_bands", o.num_bands);
-  v("pose_code_dim", o.pose_code_dim);
-  v("code_init_std", o.code_init_std);
-}
-
-template <class V>
-void VisitFields(V& v, AutoSizeOptions& o) {
-  v("enabled", o.enabled);
-  v("max_bones", o.max_bones);
-  v("grow_at", o.grow_at);
-  v("error_ratio", o.error_ratio);
-  v("eval_rays", o.eval_rays);
-  v("max_width", o.max_width);
-}
-
-template <class V>
-void VisitFields(V& v, ModelOptions& o) {
-  v("field", o.field);
-  v("num_bones", o.num_bones);
-  v("init_bone_scale", o.init_bone_scale);
-  v("init_beta", o.init_beta);
-  v("seed", o.seed);
-  v("delta_skinning", o.delta_skinning);
-  v("scene_scale", o.scene_scale);
-  v("auto_size", o.auto_size);
-}
+// The model section: model/model_options_fields.h.
 
 template <class V>
 void VisitFields(V& v, RobustLossConfig& o) {

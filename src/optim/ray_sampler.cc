@@ -10,22 +10,6 @@ namespace {
 constexpr size_t kErrorCacheSize = 4096;
 }  // namespace
 
-void NearFarPlanes(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
-                   double margin, double* near, double* far) {
-  double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
-  for (int c = 0; c < 8; ++c) {
-    const Eigen::Vector3d corner =
-        canonical_bounds.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
-    Eigen::Vector3d x;
-    PoseTransformPoint(camera_from_root.data(), corner.data(), x.data());
-    zmin = std::min(zmin, x.z());
-    zmax = std::max(zmax, x.z());
-  }
-  // Keep the near plane in front of the camera even for boxes around it.
-  *near = std::max(zmin * (1.0 - margin), 1e-3);
-  *far = std::max(zmax * (1.0 + margin), *near + 1e-3);
-}
-
 RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
   object_pixels_.resize(dataset.videos.size());
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
@@ -88,9 +72,8 @@ Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
   double near, far;
   NearFarPlanes(model.RootPose(v, t), canonical_bounds, sampling.near_far_margin, &near, &far);
   const Eigen::Vector4d& k = model.video(v).intrinsics;
-  const double dir_norm =
-      Eigen::Vector3d((ray.uv[0] - k[2]) / k[0], (ray.uv[1] - k[3]) / k[1], 1.0).norm();
-  ray.samples = StratifiedSamples(samples_per_ray, near, far, dir_norm, true, rng);
+  ray.samples =
+      StratifiedSamples(samples_per_ray, near, far, RayDirectionLength(k, ray.uv), true, rng);
   return ray;
 }
 

@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "banmo/deform/bone_centres.h"
 #include "banmo/extract/extract.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/losses/ray_batch.h"
@@ -20,7 +21,7 @@
 #include "banmo/optim/auto_size.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/ray_sampler.h"
-#include "banmo/optim/scene_scale.h"
+#include "banmo/render/ray_samples.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
@@ -50,61 +51,6 @@ class SigintGuard {
 
 }  // namespace
 
-std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options) {
-  std::vector<int> frames;
-  std::vector<PinholeCamera> cameras;
-  for (const Video& v : dataset.videos) {
-    frames.push_back(static_cast<int>(v.frames.size()));
-    cameras.push_back(v.camera);
-  }
-  auto model = std::make_unique<Model>(options, frames, cameras);
-  // Model units = dataset units / s (optim/scene_scale.h).
-  const double s = ResolveSceneScale(dataset, options);
-  model->set_scene_scale(s);
-  for (size_t v = 0; v < dataset.videos.size(); ++v) {
-    for (size_t t = 0; t < dataset.videos[v].frames.size(); ++t) {
-      Pose& root_init = model->frame(v, t).root_init;
-      root_init = dataset.videos[v].frames[t].root_pose_init;
-      for (int k = 0; k < 3; ++k) root_init[kPoseT + k] /= s;
-    }
-  }
-  return model;
-}
-
-void CopySharedParameters(const Model& from, Model* to, const std::string& source) {
-  if (from.sdf_size() != to->sdf_size() || from.color_size() != to->color_size() ||
-      from.embedding_size() != to->embedding_size() || from.bones_size() != to->bones_size() ||
-      from.delta_skinning_size() != to->delta_skinning_size() ||
-      from.pose_code_size() != to->pose_code_size()) {
-    ThrowInputError(source,
-                    ": the model's sizes (MLP widths, bones) differ from the config's "
-                    "model section; retarget with the config the model was trained with");
-  }
-  std::copy(from.sdf(), from.sdf() + from.sdf_size(), to->sdf());
-  std::copy(from.color(), from.color() + from.color_size(), to->color());
-  std::copy(from.embedding(), from.embedding() + from.embedding_size(), to->embedding());
-  std::copy(from.bones(), from.bones() + from.bones_size(), to->bones());
-  *to->log_beta() = *from.log_beta();
-  // Delta skinning: MLP_Delta and the rest-pose code are shared; the new
-  // frames' pose codes are fitted.
-  std::copy(from.delta_skinning_params(), from.delta_skinning_params() + from.delta_skinning_size(),
-            to->delta_skinning_params());
-  std::copy(from.rest_pose_code(), from.rest_pose_code() + from.pose_code_size(),
-            to->rest_pose_code());
-  // The shared shape is in `from`'s model units: `to` takes its scene scale,
-  // its root translations re-expressed (exact for equal scales).
-  const double ratio = to->scene_scale() / from.scene_scale();
-  for (int v = 0; v < to->num_videos(); ++v) {
-    for (FrameParameters& f : to->video(v).frames) {
-      for (int k = 0; k < 3; ++k) {
-        f.root_init[kPoseT + k] *= ratio;
-        f.root_delta[kPoseT + k] *= ratio;
-      }
-    }
-  }
-  to->set_scene_scale(from.scene_scale());
-}
-
 Solver::Solver(const Dataset& dataset, const SolverConfig& config, std::unique_ptr<Model> model)
     : dataset_(dataset), config_(config), model_(std::move(model)) {
   CHECK(model_ != nullptr);
@@ -128,9 +74,17 @@ SolveResult Solver::Run(const SolveOptions& options) {
     state.Deserialize(bytes);
     bounds_ = state.bounds;
   }
+  // The model records how it is trained (saved with it, model/model_file.h).
+  if (!config_.stages.empty()) {
+    const StageConfig& last = config_.stages.back();
+    model_->set_training_sampling(TrainingSampling{
+        last.samples_per_ray, last.sampling.near_far_margin, last.sampling.importance_depth});
+  }
   SigintGuard guard;
   if (config_.threads > 0) SetNumThreads(config_.threads);
-  return RunStages(options, &state);
+  SolveResult result = RunStages(options, &state);
+  model_->set_canonical_bounds(bounds_);
+  return result;
 }
 
 // Everything one Run shares across its stages.
@@ -189,6 +143,7 @@ void Solver::Save(int stage, int iteration, RunContext* c) {
   state->iteration = iteration;
   state->error_cache = c->sampler.error_cache();
   state->bounds = bounds_;
+  model_->set_canonical_bounds(bounds_);
   CheckpointInfo info{stage, iteration, c->resolved_config};
   SaveCheckpoint(c->options.out_dir + "/checkpoint", *model_, info, state->Serialize());
 }
@@ -375,7 +330,7 @@ void Solver::RunSchedules(int it, double fraction, const StageRun& run, StagePro
   if (stage.schedule.anneal_end_fraction > 0) {
     const double alpha = model.field().options().position_encoding.num_bands *
                          std::min(1.0, fraction / stage.schedule.anneal_end_fraction);
-    const_cast<CanonicalField&>(model.field()).SetAnnealing(alpha);
+    model.SetFieldAnnealing(alpha);
   }
   if (stage.schedule.bounds_refresh_every > 0 && it > 0 &&
       it % stage.schedule.bounds_refresh_every == 0) {
@@ -429,47 +384,7 @@ void Solver::Grow(int it, const StageRun& run, StageProblem* sp, RunContext* c,
 
 namespace banmo {
 
-void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng) {
-  const int n = static_cast<int>(samples->depths.size());
-  CHECK_EQ(static_cast<int>(tau.size()), n);
-  if (n < 2) return;
-  // Interval i spans [depth_i, depth_i + delta_i / dir_norm).
-  const double dir_norm = samples->dir_norm;
-  std::vector<double> lo(n), hi(n), cdf(n + 1, 0.0);
-  for (int i = 0; i < n; ++i) {
-    lo[i] = samples->depths[i];
-    hi[i] = samples->depths[i] + samples->deltas[i] / dir_norm;
-    cdf[i + 1] = cdf[i] + std::max(tau[i], 0.0) + 1e-5;  // floor keeps empty rays sampled
-  }
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::vector<double> depths;
-  depths.reserve(n);
-  for (int i = 0; i < n; i += 2) depths.push_back(samples->depths[i]);
-  while (static_cast<int>(depths.size()) < n) {
-    const double u = unit(*rng) * cdf[n];
-    const int i =
-        std::min<int>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin() - 1, n - 1);
-    const double f = (u - cdf[i]) / std::max(cdf[i + 1] - cdf[i], 1e-300);
-    depths.push_back(lo[i] + f * (hi[i] - lo[i]));
-  }
-  std::sort(depths.begin(), depths.end());
-  const double far = hi[n - 1];
-  samples->depths = depths;
-  for (int i = 0; i < n; ++i) {
-    const double next = i + 1 < n ? depths[i + 1] : far;
-    samples->deltas[i] = std::max(next - depths[i], 1e-9) * dir_norm;
-  }
-}
-
-void Solver::RefreshBounds() {
-  const Eigen::AlignedBox3d surface = SurfaceBounds(*model_, bounds_, 48);
-  if (surface.isEmpty()) return;
-  const Eigen::Vector3d margin = 0.1 * surface.sizes() + Eigen::Vector3d::Constant(0.02);
-  Eigen::AlignedBox3d next(surface.min() - margin, surface.max() + margin);
-  next = next.intersection(
-      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0), Eigen::Vector3d::Constant(2.0)));
-  if (!next.isEmpty()) bounds_ = next;
-}
+void Solver::RefreshBounds() { bounds_ = CanonicalBoundsFromSurface(*model_, bounds_); }
 
 void Solver::ReinitializeBones(SolverState* state) {
   Model& model = *model_;

@@ -8,8 +8,7 @@
 
 #include "banmo/extract/extract.h"
 #include "banmo/losses/ray_batch.h"
-#include "banmo/optim/ray_sampler.h"
-#include "banmo/optim/solver.h"
+#include "banmo/render/ray_samples.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 
@@ -127,9 +126,8 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
       const cv::Vec3d c = observed.rgb.at<cv::Vec3d>(y, x);
       ray.rgb = Eigen::Vector3d(c[0], c[1], c[2]);
       ray.mask = 0.0;  // silhouette term only until the final pass
-      const double dir_norm =
-          Eigen::Vector3d((ray.uv[0] - k[2]) / k[0], (ray.uv[1] - k[3]) / k[1], 1.0).norm();
-      ray.samples = StratifiedSamples(options.samples_per_ray, near, far, dir_norm, false, nullptr);
+      ray.samples = StratifiedSamples(options.samples_per_ray, near, far,
+                                      RayDirectionLength(k, ray.uv), false, nullptr);
     }
     ray_ptrs.resize(rays.size());
     params.resize(rays.size());
@@ -233,18 +231,6 @@ FrameErrors SummarizeErrors(const ErrorMaps& errors, const RenderedFrame& render
   s.flow = s.flow_pixels > 0 ? sum[2] / s.flow_pixels : kNaN;
   s.mask_iou = uni > 0 ? static_cast<double>(inter) / uni : kNaN;
   return s;
-}
-
-Eigen::AlignedBox3d CanonicalBoundsFromSurface(const Model& model,
-                                               const Eigen::AlignedBox3d& search) {
-  const Eigen::AlignedBox3d surface = SurfaceBounds(model, search, 48);
-  if (surface.isEmpty()) return search;
-  // The margins of Solver::RefreshBounds (src/optim/solver.cc).
-  const Eigen::Vector3d margin = 0.1 * surface.sizes() + Eigen::Vector3d::Constant(0.02);
-  Eigen::AlignedBox3d box(surface.min() - margin, surface.max() + margin);
-  box = box.intersection(
-      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0), Eigen::Vector3d::Constant(2.0)));
-  return box.isEmpty() ? search : box;
 }
 
 void CheckDatasetMatchesModel(const Dataset& dataset, const Model& model,

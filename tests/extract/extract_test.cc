@@ -266,29 +266,6 @@ TEST(Skinning, WeightsBonesAndDominantColours) {
   EXPECT_EQ(BoneEllipsoids(*rigid, 1.0, 1).NumFaces(), 0);
 }
 
-TEST(BoneCentresFromSurface, CentresAreInsideAndDeterministic) {
-  const auto model = SphereModel();
-  const TriangleMesh mesh = ExtractCanonicalMesh(*model, Quick(32));
-  for (int B : {1, 8, 25}) {
-    const auto centres = BoneCentresFromSurface(mesh, B, 7);
-    ASSERT_EQ(static_cast<int>(centres.size()), B);
-    for (const auto& c : centres) {
-      EXPECT_NEAR(WindingNumber(mesh, c), 1.0, 1e-6) << c.transpose();
-    }
-    const auto again = BoneCentresFromSurface(mesh, B, 7);
-    for (int b = 0; b < B; ++b) EXPECT_EQ(centres[b], again[b]);
-    // Distinct centres.
-    for (int a = 0; a < B; ++a) {
-      for (int b = a + 1; b < B; ++b) EXPECT_GT((centres[a] - centres[b]).norm(), 1e-3);
-    }
-  }
-  // One cluster: the area-weighted mean of a sphere is its centre.
-  EXPECT_LT(BoneCentresFromSurface(mesh, 1, 1)[0].norm(), 0.01);
-  TriangleMesh tiny;
-  tiny.vertices = Eigen::Matrix3Xd::Zero(3, 2);
-  EXPECT_THROW(BoneCentresFromSurface(tiny, 3, 0), InputError);
-}
-
 TEST(SurfaceBounds, CoarseBoundsOfTheSphere) {
   const auto model = SphereModel();
   const Eigen::AlignedBox3d box = SurfaceBounds(

@@ -1,4 +1,4 @@
-// Golden residual values on the fixed-seed tiny scene (losses/test_scene.h):
+// Golden residual values on the fixed-seed tiny scene (tests/common/test_scene.h):
 // any silent change of a formula, a layout or an initialisation fails here.
 // If a change is intended, regenerate the values and say so in the commit.
 #include <gtest/gtest.h>
@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "banmo/losses/ray_batch.h"
-#include "banmo/losses/test_scene.h"
+#include "common/test_scene.h"
 
 namespace banmo {
 namespace {

@@ -10,7 +10,7 @@
 #include "banmo/deform/bones.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
-#include "banmo/losses/test_scene.h"
+#include "common/test_scene.h"
 #include "jacobian_test_util.h"
 
 namespace banmo {

@@ -11,7 +11,7 @@
 #include <set>
 
 #include "banmo/losses/ray_batch.h"
-#include "banmo/losses/test_scene.h"
+#include "common/test_scene.h"
 #include "jacobian_test_util.h"
 
 namespace banmo {
@@ -53,8 +53,8 @@ double ReferenceGradient(RayBatch& batch, const RayRobustLosses& robust, Gradien
 
 void ExpectGradientsEqual(const Gradient& a, const Gradient& b, const Model& model) {
   std::map<const double*, std::string> names;
-  const_cast<Model&>(model).ForEachBlock(
-      [&](const std::string& name, double* data, int) { names[data] = name; });
+  model.ForEachBlock(
+      [&](const std::string& name, const double* data, int) { names[data] = name; });
   ASSERT_EQ(a.size(), b.size());
   for (const auto& [block, gb] : b) {
     ASSERT_TRUE(a.count(block)) << names[block];

@@ -239,7 +239,7 @@ TEST(ModelSetFieldWidths, ExactWideningPreservesTheField) {
   camera.intrinsics << 40, 40, 16, 16;
   Model m(options, {2}, {camera});
   // Annealing state is carried over.
-  const_cast<CanonicalField&>(m.field()).SetAnnealing(2.5);
+  m.SetFieldAnnealing(2.5);
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-0.8, 0.8);
   FieldBatch batch;

@@ -3,7 +3,7 @@
 // in model units, retargeting across scales, the checkpoint key, and short
 // solves of a tiny and a huge object whose meshes come out in dataset units
 // at the ground truth's size.
-#include "banmo/optim/scene_scale.h"
+#include "banmo/model/scene_scale.h"
 
 #include <gtest/gtest.h>
 
@@ -193,7 +193,9 @@ std::string ReadText(const std::string& path) {
   return s.str();
 }
 
-TEST(Checkpoint, KeepsTheSceneScaleAndOldCheckpointsLoadWithOne) {
+// Checkpoints of the previous format without the key load with s = 1, and
+// their model_size errors: tests/model/model_file_test.cc.
+TEST(Checkpoint, KeepsTheSceneScale) {
   const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
   const std::unique_ptr<Model> model =
       MakeModelForDataset(testing::TinyQuadrupedScene(1, 100.0).dataset, config.model);
@@ -205,14 +207,6 @@ TEST(Checkpoint, KeepsTheSceneScaleAndOldCheckpointsLoadWithOne) {
   ASSERT_NE(yaml.find("scene_scale: 128\n"), std::string::npos) << yaml;
   std::unique_ptr<Model> back = LoadCheckpoint(dir);
   EXPECT_EQ(back->scene_scale(), 128.0);
-  EXPECT_EQ(testing::AllParameters(*back), testing::AllParameters(*model));
-
-  // Written before the key existed: s = 1.
-  std::string old = yaml;
-  old.erase(old.find("scene_scale: 128\n"), std::string("scene_scale: 128\n").size());
-  std::ofstream(dir + "/model.yaml") << old;
-  back = LoadCheckpoint(dir);
-  EXPECT_EQ(back->scene_scale(), 1.0);
   EXPECT_EQ(testing::AllParameters(*back), testing::AllParameters(*model));
 
   // A bad value names the file and the key.
@@ -227,29 +221,6 @@ TEST(Checkpoint, KeepsTheSceneScaleAndOldCheckpointsLoadWithOne) {
     const std::string message = e.what();
     EXPECT_NE(message.find("model.yaml"), std::string::npos) << message;
     EXPECT_NE(message.find("scene_scale"), std::string::npos) << message;
-  }
-
-  // A malformed or invalid model_size (automatic sizing's key) names the
-  // file and the key, and what is wrong with it.
-  const size_t sizes = yaml.find("model_size: {num_bones: ");
-  ASSERT_NE(sizes, std::string::npos) << yaml;
-  const size_t value = sizes + std::string("model_size: {num_bones: ").size();
-  const size_t value_end = yaml.find(',', value);
-  ASSERT_NE(value_end, std::string::npos) << yaml;
-  for (const auto& [text, expected] : std::vector<std::pair<std::string, std::string>>{
-           {"many", "malformed key 'model_size'"}, {"-3", "model.num_bones"}}) {
-    std::string broken = yaml;
-    broken.replace(value, value_end - value, text);
-    std::ofstream(dir + "/model.yaml") << broken;
-    try {
-      LoadCheckpoint(dir);
-      ADD_FAILURE() << "expected InputError for num_bones " << text;
-    } catch (const InputError& e) {
-      const std::string message = e.what();
-      EXPECT_NE(message.find("model.yaml"), std::string::npos) << message;
-      EXPECT_NE(message.find("model_size"), std::string::npos) << message;
-      EXPECT_NE(message.find(expected), std::string::npos) << message;
-    }
   }
   fs::remove_all(dir);
 }

@@ -36,11 +36,10 @@ struct HardCase {
 
 std::ostream& operator<<(std::ostream& os, const HardCase& c) { return os << c.name; }
 
-// Name of the first block with a NaN or Inf ("" if none). Model::ForEachBlock
-// is non-const but only reads here.
+// Name of the first block with a NaN or Inf ("" if none).
 std::string NonFiniteBlock(const Model& model) {
   std::string bad;
-  const_cast<Model&>(model).ForEachBlock([&](const std::string& name, double* data, int size) {
+  model.ForEachBlock([&](const std::string& name, const double* data, int size) {
     for (int k = 0; k < size && bad.empty(); ++k) {
       if (!std::isfinite(data[k])) bad = name;
     }

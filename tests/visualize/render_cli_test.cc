@@ -59,6 +59,8 @@ class RenderCli : public ::testing::Test {
     WriteDataset(testing::TinyQuadrupedDataset(), (*root_ / "data").string());
     const std::unique_ptr<banmo::Model> model = MakeModelForDataset(
         testing::TinyQuadrupedDataset(), ParseSolverConfig(kConfig, "kConfig").model);
+    // The sampling of kConfig's stage, as the solver records it.
+    model->set_training_sampling(TrainingSampling{16, 0.2, false});
     CheckpointInfo info;
     info.config = SolverConfigToYaml(ParseSolverConfig(kConfig, "kConfig"));
     SaveCheckpoint((*root_ / "untrained").string(), *model, info);

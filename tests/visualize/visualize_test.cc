@@ -16,7 +16,7 @@
 #include "banmo/extract/extract.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
-#include "banmo/optim/ray_sampler.h"
+#include "banmo/render/ray_samples.h"
 #include "banmo/util/error.h"
 #include "banmo/visualize/panels.h"
 #include "banmo/visualize/render.h"
@@ -114,9 +114,8 @@ TEST(RenderFrame, EqualsTheFullJetReferenceResidualPlusObservation) {
     ray.has_flow = true;
     const cv::Vec2d f = observed.flow.at<cv::Vec2d>(y, x);
     ray.flow = Eigen::Vector2d(f[0], f[1]);
-    const double dir_norm =
-        Eigen::Vector3d((ray.uv[0] - k[2]) / k[0], (ray.uv[1] - k[3]) / k[1], 1.0).norm();
-    ray.samples = StratifiedSamples(options.samples_per_ray, near, far, dir_norm, false, nullptr);
+    ray.samples = StratifiedSamples(options.samples_per_ray, near, far,
+                                    RayDirectionLength(k, ray.uv), false, nullptr);
     rays.push_back(ray);
   }
   RayBatchOptions batch_options;

@@ -153,13 +153,14 @@ ExtractionSummary WriteExtraction(
 Eigen::AlignedBox3d SurfaceBounds(const Model& model, const Eigen::AlignedBox3d& bounds,
                                   int resolution = 48);
 
-// B bone centres from a surface: area-weighted k-means of the vertices
-// (k-means++ seeding with `seed`, then Lloyd iterations until no assignment
-// changes or 50 iterations). A centre is the mean of its cluster's surface
-// points, so for a cluster that is a patch of a convex-ish part it lies
-// inside the shape. Requires a mesh with at least B vertices (B >= 1).
-// Deterministic in seed.
-std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, int num_bones,
-                                                    uint32_t seed);
+// The canonical bounds of the solver's refresh (and of `banmo render`'s
+// automatic box): the surface's bounds (SurfaceBounds, resolution 48,
+// largest component) inside `search`, plus 10 % of its size and 0.02 on
+// every side, clipped to [-2, 2]^3. Returns `search` when the level set does
+// not cross the grid (e.g. an untrained model) or the clipped box is empty.
+Eigen::AlignedBox3d CanonicalBoundsFromSurface(
+    const Model& model,
+    const Eigen::AlignedBox3d& search = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0),
+                                                            Eigen::Vector3d::Constant(2.0)));
 
 }  // namespace banmo

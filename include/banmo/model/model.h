@@ -27,6 +27,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -50,12 +51,20 @@ struct ModelOptions {
   uint32_t seed = 0;                    // MLP initialisation seed
   DeltaSkinningOptions delta_skinning;  // optional MLP_Delta (needs num_bones >= 1)
   // Scene scale s, dataset units per model unit (finite, > 0). Empty = auto:
-  // estimated from the data by MakeModelForDataset (optim/scene_scale.h).
+  // estimated from the data by MakeModelForDataset (model/make_model.h).
   std::optional<double> scene_scale;
   AutoSizeOptions auto_size;  // automatic growth of B and the MLP widths
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;
+};
+
+// The ray sampling the model was trained with (that of the last stage of its
+// solver config): `banmo render` renders it the same way.
+struct TrainingSampling {
+  int samples_per_ray = 32;       // depth samples per ray (> 0)
+  double near_far_margin = 0.2;   // near/far planes widened by this fraction (>= 0)
+  bool importance_depth = false;  // second pass of samples around the surface
 };
 
 struct FrameParameters {
@@ -82,6 +91,9 @@ class Model {
 
   const ModelOptions& options() const { return options_; }
   const CanonicalField& field() const { return *field_; }
+  // Coarse-to-fine annealing of the field's position encoding
+  // (PositionalEncoding::SetAnnealing); not a parameter, not saved.
+  void SetFieldAnnealing(double alpha) { field_->SetAnnealing(alpha); }
   int num_bones() const { return options_.num_bones; }
   int num_videos() const { return static_cast<int>(videos_.size()); }
   // Scene scale s: a length of the model times s is in dataset units.
@@ -89,6 +101,15 @@ class Model {
   // Sets s (finite, > 0). Converts nothing: set it before the root poses are
   // filled in (MakeModelForDataset) or when loading a checkpoint.
   void set_scene_scale(double s);
+
+  // The canonical box the solver sampled in (near/far planes, eikonal points,
+  // soft-argmax grid; canonical model units) when the model was saved; empty
+  // when not recorded (models saved before it was stored, or never trained).
+  const std::optional<Eigen::AlignedBox3d>& canonical_bounds() const { return canonical_bounds_; }
+  void set_canonical_bounds(const Eigen::AlignedBox3d& bounds) { canonical_bounds_ = bounds; }
+  // The ray sampling of training; empty when not recorded.
+  const std::optional<TrainingSampling>& training_sampling() const { return training_sampling_; }
+  void set_training_sampling(const TrainingSampling& s) { training_sampling_ = s; }
 
   double* sdf() { return sdf_.data(); }
   double* color() { return color_.data(); }
@@ -132,6 +153,9 @@ class Model {
   // root_init, bones_t, [pose_code] ([..] only with delta skinning). Names
   // are e.g. "sdf", "video3/intrinsics", "video3/frame12/root_delta".
   void ForEachBlock(const std::function<void(const std::string& name, double* data, int size)>& fn);
+  // The same blocks, read only.
+  void ForEachBlock(
+      const std::function<void(const std::string& name, const double* data, int size)>& fn) const;
 
   // Size changes (automatic model sizing, optim/auto_size.h). Both move
   // the blocks they touch (any ceres::Problem holding them must drop them
@@ -155,7 +179,13 @@ class Model {
   std::vector<double> delta_params_, rest_pose_code_;
   double log_beta_ = 0.0;
   double scene_scale_ = 1.0;
+  std::optional<Eigen::AlignedBox3d> canonical_bounds_;
+  std::optional<TrainingSampling> training_sampling_;
   std::vector<VideoParameters> videos_;
+
+  // ForEachBlock of both constnesses (Self = Model or const Model).
+  template <class Self, class Fn>
+  static void VisitBlocks(Self& self, const Fn& fn);
 };
 
 }  // namespace banmo

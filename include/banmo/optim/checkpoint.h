@@ -1,25 +1,26 @@
-// Model checkpoints: every parameter block plus the model options, the
-// per-frame initial root poses and the solver state needed to resume
-// (stage, iteration, optimiser moments, RNG state). Written atomically
-// (temp file, fsync, rename).
+// Solver checkpoints: the model (a model folder, model/model_file.h) plus
+// what the solver needs to resume: the stage and iteration, the resolved
+// solver config and the solver's state (optimiser moments, RNG state, ...).
+// Written atomically: the files go to a fresh folder that then replaces the
+// old checkpoint by two renames.
 //
 // Layout of a checkpoint folder DIR:
-//   DIR/model.yaml     resolved solver config (model options inside), frames per
-//                      video, cameras, stage and iteration, scene_scale (the
-//                      model's s; a checkpoint without the key loads with 1)
-//                      and model_size {num_bones, sdf_width, color_width}: the
-//                      model's current sizes, which override the config's
-//                      (automatic sizing, optim/auto_size.h, grows them)
-//   DIR/params.bin     all parameter blocks, little-endian doubles (see .cc), in
-//                      model units (root translations = dataset units / s)
+//   DIR/model.yaml, DIR/params.bin
+//                      the model (model/model_file.h: parameters, sizes,
+//                      scene scale, canonical bounds, training sampling)
+//   DIR/checkpoint.yaml
+//                      format "banmo-checkpoint-2", stage, iteration and
+//                      config (the resolved solver config, YAML text)
 //   DIR/state.bin      optional solver state (opaque bytes owned by optim/)
+// Checkpoints written before the model file existed (model.yaml of format
+// "banmo-checkpoint-1" holding stage, iteration and config, no
+// checkpoint.yaml) still load.
 #pragma once
 
 #include <memory>
 #include <string>
 
 #include "banmo/model/model.h"
-#include "banmo/optim/config.h"
 
 namespace banmo {
 

@@ -13,13 +13,9 @@
 #include "banmo/losses/ray.h"
 #include "banmo/model/model.h"
 #include "banmo/optim/config.h"
+#include "banmo/render/ray_samples.h"
 
 namespace banmo {
-
-// Near and far camera depths of a frame: the 8 corners of the canonical
-// bounds pushed through the root pose G^t, widened by `margin` (0.2 = +-20 %).
-void NearFarPlanes(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
-                   double margin, double* near, double* far);
 
 class RaySampler {
  public:

@@ -32,6 +32,7 @@
 
 #include "banmo/io/dataset.h"
 #include "banmo/losses/ray.h"
+#include "banmo/model/make_model.h"
 #include "banmo/model/model.h"
 #include "banmo/optim/auto_size.h"
 #include "banmo/optim/config.h"
@@ -42,24 +43,6 @@ class RayBatch;
 class RaySampler;
 class StageProblem;
 struct SolverState;
-
-// A model for `dataset`: cameras and frame counts from the data, the scene
-// scale s from options.scene_scale or estimated from the data
-// (optim/scene_scale.h), G0^t from the dataset's rough root poses with their
-// translations divided by s, MLPs and bones initialised from options.
-std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options);
-
-// Motion retargeting (paper Sec. 4.4): copies the shared parameters (canonical
-// fields, beta, rest bones) of `from` into `to`; `to` takes `from`'s scene
-// scale (its root translations are re-expressed in `from`'s model units).
-// Throws InputError naming `source` if the two models' sizes differ.
-void CopySharedParameters(const Model& from, Model* to, const std::string& source);
-
-// Replaces half of `samples` (the odd-indexed ones after sorting) by depths
-// drawn from the piecewise-constant density given by the rendering weights
-// `tau` over the samples' intervals, keeps the depths sorted and recomputes
-// the interval lengths. Used by importance_depth sampling.
-void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng);
 
 // Per-term mean losses (1/2 |r|^2 per ray, after weights) of the last batch.
 using TermLosses = std::map<std::string, double>;

@@ -10,7 +10,8 @@
 //
 // Rays are built as optim/ray_sampler.cc builds them: pixel centre uv =
 // (x + 0.5, y + 0.5), depth samples between the frame's near and far planes
-// (NearFarPlanes: canonical bounds through the root pose, +- margin), here
+// (render/ray_samples.h, NearFarPlanes: canonical bounds through the root
+// pose, +- margin), here
 // stratified at the bin midpoints (no jitter, so renders are deterministic),
 // optionally refined by the solver's importance resampling with a fixed
 // seed. Every ray carries mask = 1 so the rgb and flow terms are active on
@@ -22,6 +23,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "banmo/extract/extract.h"
 #include "banmo/io/dataset.h"
 #include "banmo/model/model.h"
 
@@ -35,7 +37,8 @@ struct FrameRenderOptions {
   // pose, widened by this fraction (>= 0), as SamplingConfig::near_far_margin.
   double near_far_margin = 0.2;
   // Canonical box whose depth range bounds the samples (non-empty);
-  // CanonicalBoundsFromSurface gives the solver's kind of box.
+  // CanonicalBoundsFromSurface (extract/extract.h) gives the solver's kind
+  // of box.
   Eigen::AlignedBox3d canonical_bounds{Eigen::Vector3d::Constant(-1.2),
                                        Eigen::Vector3d::Constant(1.2)};
   // Second pass as the solver's importance_depth sampling: half of the
@@ -104,16 +107,6 @@ struct FrameErrors {
 };
 FrameErrors SummarizeErrors(const ErrorMaps& errors, const RenderedFrame& rendered,
                             const ObservedFrame& observed);
-
-// A canonical box for the near/far planes, found the way the solver refreshes
-// its bounds: the surface's bounds from a coarse extraction (resolution 48,
-// largest component) inside `search`, plus 10 % of its size and 0.02 on
-// every side, clipped to [-2, 2]^3. Returns `search` when the level set does
-// not cross the grid (e.g. an untrained model).
-Eigen::AlignedBox3d CanonicalBoundsFromSurface(
-    const Model& model,
-    const Eigen::AlignedBox3d& search = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0),
-                                                            Eigen::Vector3d::Constant(2.0)));
 
 // Throws InputError naming `data_dir` if the dataset does not match the model:
 // number of videos, frames per video, image size or camera intrinsics

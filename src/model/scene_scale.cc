@@ -1,4 +1,4 @@
-#include "banmo/optim/scene_scale.h"
+#include "banmo/model/scene_scale.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,8 @@
 // A small, fixed-seed synthetic ray batch for the residual-level regression
 // tests and the Jacobian-assembly benchmark: a model with random (but
 // deterministic) poses, bones and MLP weights, and rays through the object
-// that exercise every loss term.
+// that exercise every loss term. Test-only: target banmo_test_common
+// (tests/common/CMakeLists.txt), linked by tests and benchmarks alone.
 #pragma once
 
 #include <memory>

@@ -1,9 +1,10 @@
-#include "banmo/losses/test_scene.h"
+#include "common/test_scene.h"
 
 #include <random>
 
 #include "banmo/deform/bones.h"
 #include "banmo/geometry/se3.h"
+#include "banmo/render/ray_samples.h"
 
 namespace banmo {
 
@@ -97,9 +98,8 @@ TestScene MakeTestScene(const TestSceneOptions& o) {
     ray.flow = Eigen::Vector2d(2.0 * u(rng), 2.0 * u(rng));
     ray.has_feature = true;
     for (int c = 0; c < 16; ++c) ray.feature[c] = u(rng);
-    const double dir_norm =
-        std::hypot(1.0, std::hypot((ray.uv[0] - 32.0) / 80.0, (ray.uv[1] - 31.0) / 82.0));
-    ray.samples = StratifiedSamples(o.num_samples, 2.2, 3.8, dir_norm, true, &rng);
+    ray.samples = StratifiedSamples(o.num_samples, 2.2, 3.8,
+                                    RayDirectionLength(camera.intrinsics, ray.uv), true, &rng);
   }
   scene.batch->SetRays(std::move(rays));
   return scene;

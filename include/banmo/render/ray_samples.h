@@ -1,0 +1,39 @@
+// Where the depth samples of a pixel ray go (BANMo, Yang et al. CVPR 2022,
+// Sec. 3.1): the near and far planes of a frame, the length of a ray's
+// direction, and the importance resampling of importance_depth sampling.
+// Shared by the solver's ray sampler (optim/ray_sampler.h) and the pictures
+// of `banmo render` (visualize/render.h), so both place samples alike.
+// Stratified samples themselves: render/volume_rendering.h.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <random>
+#include <vector>
+
+#include "banmo/geometry/se3.h"
+#include "banmo/render/volume_rendering.h"
+
+namespace banmo {
+
+// Near and far camera depths of a frame: the 8 corners of the canonical
+// bounds pushed through the root pose G^t, widened by `margin` (0.2 = +-20 %).
+void NearFarPlanes(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
+                   double margin, double* near, double* far);
+
+// Length of the direction (z = 1, geometry/camera.h) of the ray through pixel
+// position uv: |((u - cx) / fx, (v - cy) / fy, 1)|; RaySamples::dir_norm.
+// intrinsics = [fx, fy, cx, cy].
+inline double RayDirectionLength(const Eigen::Vector4d& intrinsics, const Eigen::Vector2d& uv) {
+  return Eigen::Vector3d((uv[0] - intrinsics[2]) / intrinsics[0],
+                         (uv[1] - intrinsics[3]) / intrinsics[1], 1.0)
+      .norm();
+}
+
+// Replaces half of `samples` (the odd-indexed ones after sorting) by depths
+// drawn from the piecewise-constant density given by the rendering weights
+// `tau` over the samples' intervals, keeps the depths sorted and recomputes
+// the interval lengths. Used by importance_depth sampling.
+void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng);
+
+}  // namespace banmo

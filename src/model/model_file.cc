@@ -1,0 +1,534 @@
+#include "banmo/model/model_file.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <locale>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <vector>
+
+#include "banmo/model/model_options_fields.h"
+#include "banmo/util/atomic_file.h"
+#include "banmo/util/error.h"
+#include "banmo/util/format.h"
+#include "banmo/util/logging.h"
+
+namespace banmo {
+namespace {
+
+// params.bin: "BANMOPB1", uint64 count, count little-endian doubles in
+// Model::ForEachBlock order.
+constexpr char kMagic[8] = {'B', 'A', 'N', 'M', 'O', 'P', 'B', '1'};
+
+// What to do when a model folder cannot be read.
+constexpr char kWhatToDo[] =
+    "; pass the folder written by banmo solve (OUT/checkpoint), or solve again to write it";
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) ThrowInputError(path, ": cannot open file", kWhatToDo);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// ---- ModelOptions as YAML (the field lists of model_options_fields.h). ----
+
+class OptionsWriter {
+ public:
+  explicit OptionsWriter(YAML::Emitter* out) : out_(*out) {}
+
+  template <class T>
+  void operator()(const char* key, T& value) {
+    out_ << YAML::Key << key << YAML::Value;
+    Write(value);
+  }
+
+  template <class S>
+  void WriteStruct(S& value) {
+    out_ << YAML::BeginMap;
+    VisitFields(*this, value);
+    out_ << YAML::EndMap;
+  }
+
+ private:
+  void Write(int v) { out_ << v; }
+  void Write(uint32_t v) { out_ << v; }
+  void Write(double v) { out_ << FormatDouble(v); }
+  void Write(bool v) { out_ << (v ? "true" : "false"); }
+  void Write(Activation v) { out_ << (v == Activation::kRelu ? "relu" : "softplus"); }
+  void Write(std::optional<double>& v) {
+    if (v) {
+      Write(*v);
+    } else {
+      out_ << "auto";
+    }
+  }
+  void Write(std::vector<double>& v) {
+    out_ << YAML::Flow << YAML::BeginSeq;
+    for (double x : v) Write(x);
+    out_ << YAML::EndSeq;
+  }
+  template <class S>
+  void Write(S& v) {
+    WriteStruct(v);
+  }
+
+  YAML::Emitter& out_;
+};
+
+// Reads the keys present in a map into a struct (absent keys keep their
+// values); an unknown key or a value of the wrong type is an InputError
+// naming `source` and the key path.
+class OptionsReader {
+ public:
+  OptionsReader(const std::string& source, std::string path, YAML::Node node)
+      : source_(source), path_(std::move(path)), node_(std::move(node)) {}
+
+  // Reads the node into *value (a struct, number, flag, list...).
+  template <class T>
+  void ReadInto(T* value) {
+    Read(value);
+  }
+
+  template <class S>
+  void ReadStruct(S* value) {
+    if (node_.IsNull()) return;
+    if (!node_.IsMap()) Fail(node_, "a map");
+    std::set<std::string> known;
+    KeyNames names{&known};
+    VisitFields(names, *value);
+    for (auto it = node_.begin(); it != node_.end(); ++it) {
+      const std::string name = it->first.IsScalar() ? it->first.Scalar() : std::string("?");
+      if (!known.count(name)) {
+        ThrowInputError(source_, ": unknown key '", Join(name), "'", kWhatToDo);
+      }
+    }
+    VisitFields(*this, *value);
+  }
+
+  template <class T>
+  void operator()(const char* key, T& value) {
+    const YAML::Node child = node_[key];
+    if (!child.IsDefined()) return;
+    OptionsReader reader(source_, Join(key), child);
+    reader.Read(&value);
+  }
+
+ private:
+  struct KeyNames {
+    std::set<std::string>* keys;
+    template <class T>
+    void operator()(const char* key, T&) {
+      keys->insert(key);
+    }
+  };
+
+  std::string Join(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+  [[noreturn]] void Fail(const YAML::Node& node, const std::string& expected) const {
+    ThrowInputError(source_, ": key '", path_, "': expected ", expected, ", got ",
+                    node.IsScalar() ? "'" + node.Scalar() + "'" : std::string("a non-scalar"),
+                    kWhatToDo);
+  }
+
+  // A finite number (classic locale), or false.
+  static bool Number(const YAML::Node& node, double* value) {
+    if (!node.IsScalar()) return false;
+    std::istringstream in(node.Scalar());
+    in.imbue(std::locale::classic());
+    double v = 0.0;
+    in >> v;
+    if (in.fail() || !(in >> std::ws).eof() || !std::isfinite(v)) return false;
+    *value = v;
+    return true;
+  }
+  // Optional sign and decimal digits, in [lo, hi].
+  long long Integer(long long lo, long long hi) const {
+    const std::string s = node_.IsScalar() ? node_.Scalar() : std::string();
+    const std::string expected = "an integer in " + std::to_string(lo) + ".." + std::to_string(hi);
+    const size_t first = (!s.empty() && (s[0] == '+' || s[0] == '-')) ? 1 : 0;
+    if (first == s.size()) Fail(node_, expected);
+    for (size_t i = first; i < s.size(); ++i) {
+      if (s[i] < '0' || s[i] > '9') Fail(node_, expected);
+    }
+    errno = 0;
+    const long long v = std::strtoll(s.c_str(), nullptr, 10);
+    if (errno == ERANGE || v < lo || v > hi) Fail(node_, expected);
+    return v;
+  }
+
+  void Read(int* v) {
+    *v =
+        static_cast<int>(Integer(std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
+  }
+  void Read(uint32_t* v) {
+    *v = static_cast<uint32_t>(Integer(0, std::numeric_limits<uint32_t>::max()));
+  }
+  void Read(uint64_t* v) {
+    *v = static_cast<uint64_t>(Integer(0, std::numeric_limits<long long>::max()));
+  }
+  void Read(double* v) {
+    if (!Number(node_, v)) Fail(node_, "a finite number");
+  }
+  void Read(bool* v) {
+    const std::string s = node_.IsScalar() ? node_.Scalar() : std::string();
+    if (s == "true" || s == "True" || s == "TRUE") {
+      *v = true;
+    } else if (s == "false" || s == "False" || s == "FALSE") {
+      *v = false;
+    } else {
+      Fail(node_, "true or false");
+    }
+  }
+  void Read(std::string* v) {
+    if (!node_.IsScalar()) Fail(node_, "a string");
+    *v = node_.Scalar();
+  }
+  void Read(Activation* v) {
+    const std::string s = node_.IsScalar() ? node_.Scalar() : std::string();
+    if (s == "softplus") {
+      *v = Activation::kSoftplus;
+    } else if (s == "relu") {
+      *v = Activation::kRelu;
+    } else {
+      Fail(node_, "softplus or relu");
+    }
+  }
+  void Read(std::optional<double>* v) {
+    if (node_.IsScalar() && node_.Scalar() == "auto") {
+      v->reset();
+      return;
+    }
+    double x = 0.0;
+    if (!Number(node_, &x)) Fail(node_, "auto or a finite number");
+    *v = x;
+  }
+  void Read(std::vector<double>* v) {
+    if (node_.IsNull()) {
+      v->clear();
+      return;
+    }
+    if (!node_.IsSequence()) Fail(node_, "a list of numbers");
+    v->assign(node_.size(), 0.0);
+    for (size_t i = 0; i < node_.size(); ++i) {
+      OptionsReader item(source_, path_ + "[" + std::to_string(i) + "]", node_[i]);
+      item.Read(&(*v)[i]);
+    }
+  }
+  template <class S>
+  void Read(S* v) {
+    ReadStruct(v);
+  }
+
+  const std::string& source_;
+  std::string path_;
+  YAML::Node node_;
+};
+
+// ---- model.yaml. ----
+
+// Type tests that are false (instead of throwing) for a missing key's node.
+bool IsMap(const YAML::Node& node) { return node.IsDefined() && node.IsMap(); }
+bool IsSequence(const YAML::Node& node) { return node.IsDefined() && node.IsSequence(); }
+
+// Reads node[key] into *value when the key is present (path names it).
+template <class T>
+void ReadOptional(const std::string& source, const std::string& path, const YAML::Node& node,
+                  const char* key, T* value) {
+  if (!IsMap(node)) return;
+  const YAML::Node child = node[key];
+  if (child.IsDefined()) OptionsReader(source, path + key, child).ReadInto(value);
+}
+
+// Reads node[key], which must be present.
+template <class T>
+void ReadRequired(const std::string& source, const YAML::Node& node, const char* key, T* value) {
+  if (!IsMap(node) || !node[key].IsDefined()) {
+    ThrowInputError(source, ": missing key '", key, "'", kWhatToDo);
+  }
+  OptionsReader(source, key, node[key]).ReadInto(value);
+}
+
+// The ray sampling of the last stage of a legacy checkpoint's solver config
+// text: `defaults:` overridden by the last entry of `stages:`; keys absent
+// from both keep TrainingSampling's defaults (the solver's stage defaults).
+// Not recorded when the text has no stages.
+std::optional<TrainingSampling> LegacyTrainingSampling(const YAML::Node& config,
+                                                       const std::string& source) {
+  if (!IsMap(config)) return std::nullopt;
+  const YAML::Node stages = config["stages"];
+  if (!IsSequence(stages) || stages.size() == 0) return std::nullopt;
+  TrainingSampling s;
+  const std::string last = "stages[" + std::to_string(stages.size() - 1) + "].";
+  const std::vector<std::pair<std::string, YAML::Node>> layers = {
+      {"defaults.", config["defaults"]}, {last, stages[stages.size() - 1]}};
+  for (const auto& [path, stage] : layers) {
+    if (!IsMap(stage)) continue;
+    ReadOptional(source, path, stage, "samples_per_ray", &s.samples_per_ray);
+    const YAML::Node sampling = stage["sampling"];
+    ReadOptional(source, path + "sampling.", sampling, "near_far_margin", &s.near_far_margin);
+    ReadOptional(source, path + "sampling.", sampling, "importance_depth", &s.importance_depth);
+  }
+  return s;
+}
+
+void WriteVector3(YAML::Emitter& out, const Eigen::Vector3d& v) {
+  out << YAML::Flow << YAML::BeginSeq;
+  for (int k = 0; k < 3; ++k) out << FormatDouble(v[k]);
+  out << YAML::EndSeq;
+}
+
+// node[key], 3 numbers.
+Eigen::Vector3d ReadVector3(const std::string& source, const YAML::Node& node, const char* key) {
+  std::vector<double> v;
+  ReadRequired(source, node, key, &v);
+  if (v.size() != 3) {
+    ThrowInputError(source, ": key '", key, "': expected 3 numbers, got ", v.size(), kWhatToDo);
+  }
+  return Eigen::Vector3d(v[0], v[1], v[2]);
+}
+
+}  // namespace
+
+void WriteModelFiles(const std::string& dir, const Model& model) {
+  // Parameters first, then the YAML that describes them; the reader checks
+  // that the sizes agree.
+  std::string params(kMagic, sizeof(kMagic));
+  uint64_t count = 0;
+  std::string values;
+  model.ForEachBlock([&](const std::string&, const double* data, int size) {
+    values.append(reinterpret_cast<const char*>(data), sizeof(double) * size);
+    count += size;
+  });
+  params.append(reinterpret_cast<const char*>(&count), sizeof(count));
+  params += values;
+  WriteFileAtomic(dir + "/params.bin", params);
+
+  ModelOptions options = model.options();  // the field lists take non-const references
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  out << YAML::Key << "format" << YAML::Value << kModelFileFormat;
+  out << YAML::Key << "parameters" << YAML::Value << count;
+  out << YAML::Key << "scene_scale" << YAML::Value << FormatDouble(model.scene_scale());
+  out << YAML::Key << "options" << YAML::Value;
+  OptionsWriter(&out).WriteStruct(options);
+  if (model.canonical_bounds()) {
+    out << YAML::Key << "canonical_bounds" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "min" << YAML::Value;
+    WriteVector3(out, model.canonical_bounds()->min());
+    out << YAML::Key << "max" << YAML::Value;
+    WriteVector3(out, model.canonical_bounds()->max());
+    out << YAML::EndMap;
+  }
+  if (model.training_sampling()) {
+    const TrainingSampling& s = *model.training_sampling();
+    out << YAML::Key << "training_sampling" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "samples_per_ray" << YAML::Value << s.samples_per_ray;
+    out << YAML::Key << "near_far_margin" << YAML::Value << FormatDouble(s.near_far_margin);
+    out << YAML::Key << "importance_depth" << YAML::Value
+        << (s.importance_depth ? "true" : "false");
+    out << YAML::EndMap;
+  }
+  out << YAML::Key << "videos" << YAML::Value << YAML::BeginSeq;
+  for (int v = 0; v < model.num_videos(); ++v) {
+    const VideoParameters& vp = model.video(v);
+    out << YAML::BeginMap;
+    out << YAML::Key << "frames" << YAML::Value << static_cast<int>(vp.frames.size());
+    out << YAML::Key << "width" << YAML::Value << vp.camera.width;
+    out << YAML::Key << "height" << YAML::Value << vp.camera.height;
+    out << YAML::Key << "intrinsics" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    for (int k = 0; k < 4; ++k) out << FormatDouble(vp.camera.intrinsics[k]);
+    out << YAML::EndSeq << YAML::EndMap;
+  }
+  out << YAML::EndSeq;
+  out << YAML::EndMap;
+  CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
+  WriteFileAtomic(dir + "/model.yaml", std::string(out.c_str()) + "\n");
+}
+
+std::string ResolveModelFolder(const std::string& dir) {
+  if (!std::filesystem::exists(dir + "/model.yaml") &&
+      std::filesystem::exists(dir + ".old/model.yaml")) {
+    return dir + ".old";  // a save was interrupted between its two renames
+  }
+  return dir;
+}
+
+namespace {
+
+std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
+  const std::string yaml_path = dir + "/model.yaml";
+  if (!std::filesystem::exists(yaml_path)) {
+    ThrowInputError(dir, ": not a model folder (no model.yaml)", kWhatToDo);
+  }
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(yaml_path);
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(yaml_path, ": not valid YAML (", e.what(), "): the file is damaged", kWhatToDo);
+  }
+  if (!IsMap(root)) {
+    ThrowInputError(yaml_path,
+                    ": expected a map of keys (format, parameters, ...): the file is "
+                    "damaged",
+                    kWhatToDo);
+  }
+  std::string format;
+  ReadRequired(yaml_path, root, "format", &format);
+  const bool legacy = format == kLegacyCheckpointFormat;
+  if (!legacy && format != kModelFileFormat) {
+    ThrowInputError(yaml_path, ": unknown model format '", format, "' (this banmo reads ",
+                    kModelFileFormat, " and ", kLegacyCheckpointFormat,
+                    "); read it with the banmo that wrote it, or solve again with this one");
+  }
+
+  ModelOptions options;
+  std::optional<TrainingSampling> sampling;
+  if (legacy) {
+    // The model options are the config's model section, the sizes those of
+    // model_size (absent before automatic sizing existed).
+    std::string config_text;
+    ReadRequired(yaml_path, root, "config", &config_text);
+    const std::string config_source = yaml_path + " (config)";
+    YAML::Node config;
+    try {
+      config = YAML::Load(config_text);
+    } catch (const YAML::Exception& e) {
+      ThrowInputError(config_source, ": not valid YAML (", e.what(), ")", kWhatToDo);
+    }
+    if (IsMap(config) && config["model"].IsDefined()) {
+      OptionsReader(config_source, "model", config["model"]).ReadInto(&options);
+    }
+    const YAML::Node size = root["model_size"];
+    if (size.IsDefined()) {
+      ReadRequired(yaml_path + " (model_size)", size, "num_bones", &options.num_bones);
+      ReadRequired(yaml_path + " (model_size)", size, "sdf_width", &options.field.sdf_width);
+      ReadRequired(yaml_path + " (model_size)", size, "color_width", &options.field.color_width);
+    }
+    sampling = LegacyTrainingSampling(config, config_source);
+  } else {
+    const YAML::Node node = root["options"];
+    if (!node.IsDefined()) ThrowInputError(yaml_path, ": missing key 'options'", kWhatToDo);
+    OptionsReader(yaml_path, "options", node).ReadInto(&options);
+    const YAML::Node s = root["training_sampling"];
+    if (s.IsDefined()) {
+      TrainingSampling t;
+      const std::string source = yaml_path + " (training_sampling)";
+      ReadRequired(source, s, "samples_per_ray", &t.samples_per_ray);
+      ReadRequired(source, s, "near_far_margin", &t.near_far_margin);
+      ReadRequired(source, s, "importance_depth", &t.importance_depth);
+      if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0)) {
+        ThrowInputError(yaml_path,
+                        ": key 'training_sampling': expected samples_per_ray > 0 and "
+                        "near_far_margin >= 0",
+                        kWhatToDo);
+      }
+      sampling = t;
+    }
+  }
+  try {
+    options.Check();
+  } catch (const InputError& e) {
+    ThrowInputError(yaml_path, ": ", e.what(), kWhatToDo);
+  }
+
+  double scene_scale = 1.0;  // legacy checkpoints written before the key existed
+  if (legacy) {
+    ReadOptional(yaml_path, "", root, "scene_scale", &scene_scale);
+  } else {
+    ReadRequired(yaml_path, root, "scene_scale", &scene_scale);
+  }
+  if (!(scene_scale > 0 && std::isfinite(scene_scale))) {
+    ThrowInputError(yaml_path, ": key 'scene_scale': expected a finite number > 0, got ",
+                    scene_scale, kWhatToDo);
+  }
+  uint64_t expected_count = 0;
+  ReadRequired(yaml_path, root, "parameters", &expected_count);
+
+  std::vector<int> frames;
+  std::vector<PinholeCamera> cameras;
+  const YAML::Node videos = root["videos"];
+  if (!IsSequence(videos)) {
+    ThrowInputError(yaml_path, ": key 'videos': expected a list of videos", kWhatToDo);
+  }
+  for (size_t v = 0; v < videos.size(); ++v) {
+    const std::string source = yaml_path + " (videos[" + std::to_string(v) + "])";
+    int count = 0;
+    PinholeCamera cam;
+    ReadRequired(source, videos[v], "frames", &count);
+    ReadRequired(source, videos[v], "width", &cam.width);
+    ReadRequired(source, videos[v], "height", &cam.height);
+    std::vector<double> k;
+    ReadRequired(source, videos[v], "intrinsics", &k);
+    if (count < 0 || cam.width <= 0 || cam.height <= 0 || k.size() != 4) {
+      ThrowInputError(source, ": expected frames >= 0, width and height > 0 and 4 intrinsics",
+                      kWhatToDo);
+    }
+    for (int i = 0; i < 4; ++i) cam.intrinsics[i] = k[i];
+    frames.push_back(count);
+    cameras.push_back(cam);
+  }
+
+  auto model = std::make_unique<Model>(options, frames, cameras);
+  model->set_scene_scale(scene_scale);
+  if (sampling) model->set_training_sampling(*sampling);
+  const YAML::Node bounds = root["canonical_bounds"];
+  if (!legacy && bounds.IsDefined()) {
+    const std::string source = yaml_path + " (canonical_bounds)";
+    const Eigen::Vector3d lo = ReadVector3(source, bounds, "min");
+    const Eigen::Vector3d hi = ReadVector3(source, bounds, "max");
+    if (!((hi - lo).array() > 0.0).all()) {
+      ThrowInputError(source, ": expected max > min on every axis", kWhatToDo);
+    }
+    model->set_canonical_bounds(Eigen::AlignedBox3d(lo, hi));
+  }
+
+  const std::string params_path = dir + "/params.bin";
+  const std::string params = ReadFile(params_path);
+  uint64_t count = 0;
+  if (params.size() < sizeof(kMagic) + sizeof(count) ||
+      std::memcmp(params.data(), kMagic, sizeof(kMagic)) != 0) {
+    ThrowInputError(params_path, ": not a banmo parameter file (the file is damaged)", kWhatToDo);
+  }
+  std::memcpy(&count, params.data() + sizeof(kMagic), sizeof(count));
+  uint64_t model_count = 0;
+  model->ForEachBlock([&](const std::string&, const double*, int size) { model_count += size; });
+  if (count != expected_count || count != model_count ||
+      params.size() != sizeof(kMagic) + sizeof(count) + sizeof(double) * count) {
+    ThrowInputError(params_path, ": holds ", count, " values (", params.size(),
+                    " bytes), expected ", model_count, " for the model in ", yaml_path,
+                    " (the files are damaged or from different saves)", kWhatToDo);
+  }
+  const char* p = params.data() + sizeof(kMagic) + sizeof(count);
+  model->ForEachBlock([&](const std::string&, double* data, int size) {
+    std::memcpy(data, p, sizeof(double) * size);
+    p += sizeof(double) * size;
+  });
+  return model;
+}
+
+}  // namespace
+
+std::unique_ptr<Model> ReadModelFiles(const std::string& dir) {
+  try {
+    return ReadModelFilesUnguarded(dir);
+  } catch (const YAML::Exception& e) {  // a shape the checks above did not foresee
+    ThrowInputError(dir, "/model.yaml: malformed (", e.what(), "): the file is damaged", kWhatToDo);
+  }
+}
+
+std::unique_ptr<Model> LoadModel(const std::string& dir) {
+  return ReadModelFiles(ResolveModelFolder(dir));
+}
+
+}  // namespace banmo

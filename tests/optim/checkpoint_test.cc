@@ -1,0 +1,95 @@
+#include "banmo/optim/checkpoint.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "banmo/model/model_file.h"
+#include "banmo/util/error.h"
+
+namespace banmo {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::vector<double> AllParameters(const Model& model) {
+  std::vector<double> out;
+  model.ForEachBlock(
+      [&](const std::string&, const double* d, int n) { out.insert(out.end(), d, d + n); });
+  return out;
+}
+
+// The checkpoint of the previous format (written by the code before the
+// model file existed: tests/model/data/README.md).
+const std::string kV1 = std::string(BANMO_SOURCE_DIR) + "/tests/model/data/checkpoint_v1";
+
+TEST(Checkpoint, PreviousFormatLoadsWithItsInfo) {
+  CheckpointInfo info;
+  std::string state = "not read";
+  const std::unique_ptr<Model> model = LoadCheckpoint(kV1, &info, &state);
+  EXPECT_EQ(info.stage, 1);  // written at the end of its only stage
+  EXPECT_EQ(info.iteration, 0);
+  EXPECT_NE(info.config.find("samples_per_ray: 8"), std::string::npos) << info.config;
+  EXPECT_EQ(state, "");  // the fixture keeps no solver state
+  EXPECT_EQ(AllParameters(*model), AllParameters(*LoadModel(kV1)));
+}
+
+TEST(Checkpoint, RoundTripWritesAModelFolderPlusTheSolverFiles) {
+  const std::unique_ptr<Model> model = LoadModel(kV1);
+  model->set_canonical_bounds(
+      Eigen::AlignedBox3d(Eigen::Vector3d(-1, -0.5, -0.25), Eigen::Vector3d(0.5, 1, 2)));
+  const fs::path dir = fs::path(::testing::TempDir()) / "banmo_checkpoint_round_trip";
+  fs::remove_all(dir);
+  SaveCheckpoint(dir.string(), *model, CheckpointInfo{2, 9, "seed: 1\n"}, "bytes");
+  EXPECT_TRUE(fs::exists(dir / "checkpoint.yaml"));
+  EXPECT_EQ(ReadText(dir / "state.bin"), "bytes");
+  EXPECT_FALSE(fs::exists(dir.string() + ".tmp"));
+  CheckpointInfo info;
+  std::string state;
+  const std::unique_ptr<Model> back = LoadCheckpoint(dir.string(), &info, &state);
+  EXPECT_EQ(info.stage, 2);
+  EXPECT_EQ(info.iteration, 9);
+  EXPECT_EQ(info.config, "seed: 1\n");
+  EXPECT_EQ(state, "bytes");
+  EXPECT_EQ(AllParameters(*back), AllParameters(*model));
+  ASSERT_TRUE(back->canonical_bounds().has_value());
+  EXPECT_EQ(back->canonical_bounds()->max(), Eigen::Vector3d(0.5, 1, 2));
+  // The model folder alone reads without optim (model/model_file.h).
+  EXPECT_EQ(AllParameters(*LoadModel(dir.string())), AllParameters(*model));
+
+  // Saving again replaces it; no .old or .tmp folder is left.
+  SaveCheckpoint(dir.string(), *model, CheckpointInfo{3, 0, ""});
+  LoadCheckpoint(dir.string(), &info, &state);
+  EXPECT_EQ(info.stage, 3);
+  EXPECT_EQ(state, "");
+  EXPECT_FALSE(fs::exists(dir.string() + ".old"));
+
+  // An unknown checkpoint format names the file and what to do.
+  std::string yaml = ReadText(dir / "checkpoint.yaml");
+  yaml.replace(yaml.find("banmo-checkpoint-2"), 18, "banmo-checkpoint-5");
+  std::ofstream(dir / "checkpoint.yaml") << yaml;
+  try {
+    LoadCheckpoint(dir.string(), &info);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find((dir / "checkpoint.yaml").string()), std::string::npos) << message;
+    EXPECT_NE(message.find("banmo-checkpoint-5"), std::string::npos) << message;
+    EXPECT_NE(message.find("solve again"), std::string::npos) << message;
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace banmo

@@ -1,0 +1,34 @@
+#include "cli_options.h"
+
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include "banmo/util/error.h"
+
+namespace banmo::tools {
+
+Eigen::AlignedBox3d ParseBoxOption(const std::string& flag, const std::string& text,
+                                   const std::string& expected) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      ThrowInputError(flag, " '", text, "': '", item, "' is not a number");
+    }
+  }
+  if (v.size() != 6) ThrowInputError(flag, " '", text, "': expected ", expected);
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(v[0], v[1], v[2]),
+                                Eigen::Vector3d(v[3], v[4], v[5]));
+  if (!(box.sizes().array() > 0.0).all()) {
+    ThrowInputError(flag, " '", text, "': expected max > min on every axis");
+  }
+  return box;
+}
+
+}  // namespace banmo::tools
