@@ -85,7 +85,8 @@ std::string NextVideoName(const std::vector<std::string>& taken) {
 }
 
 void AddVideosToDataset(const Dataset& added, const std::string& dir, const WriteOptions& options) {
-  const fs::path root = fs::path(dir).lexically_normal();
+  fs::path root = fs::path(dir).lexically_normal();
+  if (root.filename().empty()) root = root.parent_path();  // "ds/" -> "ds"
   const std::string manifest_path = (root / internal::kManifestName).string();
   std::error_code ec;
   if (!fs::is_directory(root, ec)) {

@@ -285,11 +285,13 @@ class GltfRigBuilder {
       std::vector<int> draco_indices;
       const bool draco =
           internal::DecodeDracoPrimitive(model_, prim, mesh.name, &reader_, &draco_indices);
+      const int material = prim.material >= 0 ? prim.material : default_material_;
+      if (material >= static_cast<int>(rig_.materials.size())) reader_.Fail("bad material index");
       const int base = static_cast<int>(positions_.size());
-      const int count = AddVertices(node_index, mesh, prim);
+      const int count = AddVertices(node_index, mesh, prim, material);
       AddSkinWeights(n.skin, rigid_influence, mesh, prim, base, count);
       AddMorphTargets(node_index, prim, base, count);
-      AddFaces(mesh, prim, mode, base, count, draco ? &draco_indices : nullptr);
+      AddFaces(mesh, prim, mode, material, base, count, draco ? &draco_indices : nullptr);
     }
   }
 
@@ -305,7 +307,8 @@ class GltfRigBuilder {
   }
 
   // Positions, colours and UVs; returns the number of vertices added.
-  int AddVertices(int node_index, const tinygltf::Mesh& mesh, const tinygltf::Primitive& prim) {
+  int AddVertices(int node_index, const tinygltf::Mesh& mesh, const tinygltf::Primitive& prim,
+                  int material) {
     const int position = Attribute(prim, "POSITION");
     if (position < 0) reader_.Fail("mesh '", mesh.name, "': primitive without POSITION");
     const Eigen::MatrixXd pos = reader_.ReadFloats(position, "POSITION");
@@ -330,8 +333,6 @@ class GltfRigBuilder {
       for (int i = 0; i < count; ++i) colors_.emplace_back(1, 1, 1);
     }
     // UVs of the material's base colour texture.
-    const int material = prim.material >= 0 ? prim.material : default_material_;
-    if (material >= static_cast<int>(rig_.materials.size())) reader_.Fail("bad material index");
     const MaterialUv& muv = material_uv_[material];
     const std::string uv_name = "TEXCOORD_" + std::to_string(muv.texcoord);
     const int texcoord = Attribute(prim, uv_name);
@@ -348,7 +349,6 @@ class GltfRigBuilder {
       }
       for (int i = 0; i < count; ++i) uvs_.emplace_back(0, 0);
     }
-    face_material_of_primitive_ = material;
     return count;
   }
 
@@ -432,8 +432,8 @@ class GltfRigBuilder {
 
   // Faces from the indices accessor, or `decoded` (a Draco primitive's
   // corners), or the vertices in order.
-  void AddFaces(const tinygltf::Mesh& mesh, const tinygltf::Primitive& prim, int mode, int base,
-                int count, const std::vector<int>* decoded) {
+  void AddFaces(const tinygltf::Mesh& mesh, const tinygltf::Primitive& prim, int mode, int material,
+                int base, int count, const std::vector<int>* decoded) {
     std::vector<int> idx;
     if (decoded != nullptr) {
       idx = *decoded;
@@ -446,7 +446,6 @@ class GltfRigBuilder {
     for (int i : idx) {
       if (i < 0 || i >= count) reader_.Fail("mesh '", mesh.name, "': index ", i, " out of range");
     }
-    const int material = face_material_of_primitive_;
     auto add_face = [&](int a, int b, int c) {
       if (a == b || b == c || a == c) return;
       faces_.emplace_back(base + a, base + b, base + c);
@@ -562,7 +561,6 @@ class GltfRigBuilder {
   std::vector<std::array<float, kMaxVertexInfluences>> vw_;
   std::vector<Eigen::Vector3i> faces_;
   std::vector<int> face_material_;
-  int face_material_of_primitive_ = 0;
   bool any_uv_ = false;
 };
 

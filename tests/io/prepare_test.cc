@@ -369,7 +369,7 @@ TEST(AddVideos, AddsWithoutTouchingTheExistingVideos) {
   EXPECT_EQ(ReadDatasetInfo(ds).video_names, std::vector<std::string>{"video_000"});
   EXPECT_EQ(NextVideoName(ReadDatasetInfo(ds).video_names), "video_001");
   AddVideosToDataset(TinyVideo(tmp.path() + "/b", "video_001"), ds);
-  AddVideosToDataset(TinyVideo(tmp.path() + "/c", "cat_walk"), ds);
+  AddVideosToDataset(TinyVideo(tmp.path() + "/c", "cat_walk"), ds + "/");  // trailing slash
   const Dataset d = LoadDataset(ds);
   ASSERT_EQ(d.videos.size(), 3u);
   EXPECT_EQ(d.videos[1].name, "video_001");

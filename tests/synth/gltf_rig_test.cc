@@ -7,7 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "../common/shared_assets.h"
@@ -78,6 +81,40 @@ TEST(GltfDraco, FoxDecodesWithinTheQuantisationTolerance) {
   const Eigen::Matrix3Xd posed_draco = PoseRig(draco, &draco.animations[1], t);
   EXPECT_LT(SymmetricDistance(posed_draco, posed_original), 2 * tolerance);
   EXPECT_GT((posed_original - original.rest_vertices).colwise().norm().maxCoeff(), 5.0);
+}
+
+// A file from another encoder: Debian's draco_transcoder (package `draco`,
+// tools/install_deps.sh), which also quantises the skin weights.
+TEST(GltfDraco, TranscoderFoxMatchesTheOriginal) {
+  ASSERT_TRUE(banmo::testing::SharedAssetExists(kFox));
+  const std::string path = Temp("fox_transcoded.glb");
+  std::filesystem::remove(path);
+  const std::string command = "draco_transcoder -i " + kFox + " -o " + path +
+                              " -qp 14 -qt 12 -qw 12 > " + Temp("transcoder.log") + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0)
+      << command << " failed (is Debian's `draco` package installed? tools/install_deps.sh)";
+  {  // plain tinygltf refuses it (the reason for the JSON pre-pass)
+    std::ifstream in(path, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_NE(bytes.find("\"extensionsRequired\":[\"KHR_draco_mesh_compression\"]"),
+              std::string::npos);
+  }
+  const Rig original = LoadGltfRig(kFox);
+  const Rig draco = LoadGltfRig(path);
+  EXPECT_EQ(draco.NumFaces(), original.NumFaces());
+  ASSERT_EQ(draco.animations.size(), 3u);
+  const Eigen::Vector3d extent =
+      original.rest_vertices.rowwise().maxCoeff() - original.rest_vertices.rowwise().minCoeff();
+  const double step = extent.maxCoeff() / ((1 << 14) - 1);
+  EXPECT_LT(SymmetricDistance(draco.rest_vertices, original.rest_vertices),
+            std::sqrt(3.0) / 2 * step * 1.01);
+  // Posed: 12-bit weights move a vertex by at most a few 1e-4 of the
+  // extent here; 1e-3 of the extent leaves room without hiding a wrong
+  // joint (those move vertices by tens of percent).
+  const Animation& run = original.animations[2];
+  const double t = run.StartTime() + 0.5 * run.Duration();
+  EXPECT_LT(SymmetricDistance(PoseRig(draco, &draco.animations[2], t), PoseRig(original, &run, t)),
+            1e-3 * extent.maxCoeff());
 }
 
 TEST(GltfDraco, TinyStripKeepsFacesUvsAndSkinning) {
