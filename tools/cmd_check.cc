@@ -23,6 +23,29 @@ std::string HumanBytes(double bytes) {
   return buffer;
 }
 
+// What the solver would miss (docs/dataset.md, "What the solver needs that
+// real data may lack"): not errors, the dataset is valid without them.
+void PrintNotes(const Dataset& dataset) {
+  for (const Video& v : dataset.videos) {
+    if (!v.present.features) {
+      std::printf(
+          "note: video %s has no pixel features: the feature_match and cycle_2d losses "
+          "get no residuals there\n",
+          v.name.c_str());
+    }
+    bool all_same = v.frames.size() > 1;
+    for (const Frame& f : v.frames) {
+      all_same = all_same && f.root_pose_init == v.frames[0].root_pose_init;
+    }
+    if (all_same) {
+      std::printf(
+          "note: video %s: every initial root pose is the same (banmo prepare without "
+          "--poses?): the solver starts every frame from it\n",
+          v.name.c_str());
+    }
+  }
+}
+
 int RunCheck(int argc, char** argv) {
   CLI::App app{
       "Validate a dataset folder (manifest, every image, flow, feature and pose file; "
@@ -79,6 +102,7 @@ int RunCheck(int argc, char** argv) {
     std::printf("  present: %s\n", present.c_str());
     std::printf("  skipped frames: %s\n", skipped.empty() ? "none" : skipped.c_str());
   }
+  PrintNotes(dataset);
   std::printf("valid (%s check in %.2f s)\n", quick ? "quick" : "full", seconds);
   return 0;
 }

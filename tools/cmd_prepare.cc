@@ -1,5 +1,6 @@
 // banmo prepare: a real video (or folder of frames) + masks -> the dataset
-// format of docs/dataset.md, with DIS optical flow.
+// format of docs/dataset.md, with DIS optical flow; a new dataset, or one
+// more video in an existing dataset (--add).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <sstream>
@@ -38,7 +39,9 @@ int RunPrepare(int argc, char** argv) {
       "Without --poses, every root pose is the identity rotation with the object at "
       "--distance along the camera's +z axis. Without --intrinsics, fx = fy = max(width, "
       "height) and the principal point is the image centre. Without --features, the dataset "
-      "has no feature files.",
+      "has no feature files.\n"
+      "Several videos: prepare the first into a new dataset, then each further one with "
+      "--add (same --out); the videos already there are not touched.",
       "banmo prepare"};
   PrepareOptions options;
   std::string out_dir;
@@ -47,6 +50,7 @@ int RunPrepare(int argc, char** argv) {
   std::string mask_format = "auto";
   std::string preset = "medium";
   bool overwrite = false;
+  bool add = false;
   auto* video = app.add_option("--video", options.video_path, "Input video file (OpenCV)");
   auto* frames =
       app.add_option("--frames", options.frames_dir, "Folder of frame images (sorted by name)");
@@ -56,9 +60,14 @@ int RunPrepare(int argc, char** argv) {
                  "Folder of mask images: same name stems as the frames (with --video: one per "
                  "frame in sorted order)")
       ->required();
-  app.add_option("--out", out_dir, "Output dataset folder (must not exist or be empty)")
+  app.add_option("--out", out_dir,
+                 "Output dataset folder (must not exist or be empty; with --add: the existing "
+                 "dataset)")
       ->required();
-  app.add_option("--gaps", gaps, "Flow frame gaps, comma separated")->capture_default_str();
+  app.add_option("--gaps", gaps,
+                 "Flow frame gaps, comma separated (with --add: default and only choice the "
+                 "dataset's gaps)")
+      ->capture_default_str();
   app.add_option("--poses", options.poses_path,
                  "Root poses: one 'qw qx qy qz tx ty tz' line per frame (camera_from_root)");
   app.add_option("--intrinsics", intrinsics, "fx,fy,cx,cy in pixels");
@@ -68,8 +77,9 @@ int RunPrepare(int argc, char** argv) {
                  "auto (BANMo if any value is 128, else binary), binary (0/255 or 0/1; values "
                  ">= 128 are the object) or banmo (128 = object, 255 = ignore)")
       ->capture_default_str();
-  app.add_option("--name", options.video_name, "Video folder name in the dataset")
-      ->capture_default_str();
+  app.add_option("--name", options.video_name,
+                 "Video folder name in the dataset (default: video_000, or with --add the first "
+                 "free one of video_000, video_001, ...)");
   app.add_option("--distance", options.default_distance,
                  "Object distance of the default root poses (scene units)")
       ->capture_default_str();
@@ -86,7 +96,15 @@ int RunPrepare(int argc, char** argv) {
   app.add_option("--fb-beta", options.flow.fb_beta,
                  "Forward-backward check: absolute tolerance beta (px^2)")
       ->capture_default_str();
-  app.add_flag("--overwrite", overwrite, "Replace a non-empty output folder");
+  app.add_flag("--resize-masks", options.resize_masks,
+               "Resize masks of another size than their frames (nearest neighbour) instead of "
+               "refusing them");
+  auto* overwrite_flag =
+      app.add_flag("--overwrite", overwrite, "Replace a non-empty output folder");
+  app.add_flag("--add", add,
+               "Add this video to the existing dataset --out (written beside it, then moved "
+               "in; the manifest is replaced last, so a failure leaves the dataset as it was)")
+      ->excludes(overwrite_flag);
   CLI11_PARSE(app, argc, argv);
 
   if (options.video_path.empty() && options.frames_dir.empty()) {
@@ -118,15 +136,36 @@ int RunPrepare(int argc, char** argv) {
   } else {
     ThrowInputError("--flow-preset: '", preset, "', expected medium or fine");
   }
+  const bool name_given = app.count("--name") > 0;
+  DatasetInfo existing;
+  if (add) {
+    // Fail before the (slow) flow: the dataset must exist, the name be new.
+    existing = ReadDatasetInfo(out_dir);
+    if (app.count("--gaps") == 0) options.gaps = existing.flow_gaps;
+    if (!name_given) options.video_name = NextVideoName(existing.video_names);
+    for (const std::string& name : existing.video_names) {
+      if (name == options.video_name) {
+        ThrowInputError(out_dir, ": already has a video named '", name,
+                        "'; choose another --name (or leave it out for the next free video_NNN)");
+      }
+    }
+  }
   options.Check();
 
   Timer timer;
   const Dataset dataset = PrepareDataset(options);
-  WriteDataset(dataset, out_dir, nullptr, overwrite);
+  if (add) {
+    AddVideosToDataset(dataset, out_dir);
+  } else {
+    WriteDataset(dataset, out_dir, nullptr, overwrite);
+  }
   const Video& v = dataset.videos[0];
-  std::printf("wrote %s: video '%s', %zu frames of %dx%d, %d skipped (empty mask), in %.1f s\n",
-              out_dir.c_str(), v.name.c_str(), v.frames.size(), v.camera.width, v.camera.height,
-              dataset.NumSkippedFrames(), timer.Seconds());
+  std::printf("%s %s: video '%s', %zu frames of %dx%d, %d skipped (empty mask), in %.1f s\n",
+              add ? "added to" : "wrote", out_dir.c_str(), v.name.c_str(), v.frames.size(),
+              v.camera.width, v.camera.height, dataset.NumSkippedFrames(), timer.Seconds());
+  if (add) {
+    std::printf("%s now has %zu videos\n", out_dir.c_str(), existing.video_names.size() + 1);
+  }
   return 0;
 }
 

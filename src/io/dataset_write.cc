@@ -268,16 +268,17 @@ void WriteDataset(const Dataset& dataset, const std::string& dir,
   WriteDataset(dataset, dir, options, gt_meshes);
 }
 
-void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOptions& options,
-                  const std::vector<std::vector<TriangleMesh>>* gt_meshes) {
-  options.Check();
-  if (dir.empty()) ThrowInputError("WriteDataset: empty output folder name");
+namespace {
+
+// The manifest of `dataset`, after checking everything in memory (nothing is
+// written for a bad dataset).
+internal::Manifest CheckedManifest(const Dataset& dataset, const WriteOptions& options,
+                                   const std::vector<std::vector<TriangleMesh>>* gt_meshes) {
   if (dataset.videos.empty()) ThrowInputError("WriteDataset: the dataset has no videos");
   if (gt_meshes != nullptr && gt_meshes->size() != dataset.videos.size()) {
     ThrowInputError("WriteDataset: gt_meshes has ", gt_meshes->size(), " videos, the dataset ",
                     dataset.videos.size());
   }
-  // Manifest and in-memory checks first: nothing is written for a bad dataset.
   internal::Manifest manifest;
   manifest.flow_gaps = dataset.flow_gaps;
   std::sort(manifest.flow_gaps.begin(), manifest.flow_gaps.end());
@@ -302,118 +303,153 @@ void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOpt
   if (any_depth && options.depth_encoding == DepthEncoding::kPng16) {
     manifest.depth_unit = options.depth_unit > 0 ? options.depth_unit : ChooseDepthUnit(dataset);
   }
+  return manifest;
+}
 
-  // Target: must not exist, be an empty folder, or overwrite must be set.
+// The normalised target folder: must not exist, be an empty folder, or
+// overwrite must be set.
+fs::path CheckedTarget(const std::string& dir, bool overwrite) {
   fs::path target = fs::path(dir).lexically_normal();
   if (target.filename().empty()) target = target.parent_path();
   std::error_code ec;
-  const bool exists = fs::exists(target, ec);
-  if (exists) {
+  if (fs::exists(target, ec)) {
     if (!fs::is_directory(target, ec)) {
       ThrowInputError(target.string(), ": exists and is not a folder");
     }
-    if (!fs::is_empty(target, ec) && !options.overwrite) {
+    if (!fs::is_empty(target, ec) && !overwrite) {
       ThrowInputError(target.string(),
                       ": folder exists and is not empty (choose another folder or overwrite)");
     }
   }
+  return target;
+}
+
+// Writes the manifest, the folders and pose files of every video and then
+// every frame (in parallel) into `temp`.
+void WriteContents(const Dataset& dataset, const internal::Manifest& manifest,
+                   const WriteOptions& options,
+                   const std::vector<std::vector<TriangleMesh>>* gt_meshes,
+                   const std::string& temp) {
+  WriteFileAtomic(temp + "/" + internal::kManifestName, internal::EmitManifest(manifest));
+  struct Job {
+    int video;
+    int frame;
+  };
+  std::vector<Job> jobs;
+  for (int v = 0; v < static_cast<int>(dataset.videos.size()); ++v) {
+    const Video& video = dataset.videos[v];
+    const internal::ManifestVideo& mv = manifest.videos[v];
+    const std::string vdir = temp + "/" + video.name;
+    MakeDirectories(vdir + "/rgb");
+    MakeDirectories(vdir + "/mask");
+    if (mv.present.features) MakeDirectories(vdir + "/features");
+    if (mv.present.depth) MakeDirectories(vdir + "/depth");
+    if (mv.present.gt_mesh) MakeDirectories(vdir + "/gt_mesh");
+    if (mv.present.flow) {
+      for (int g : manifest.flow_gaps) {
+        MakeDirectories(vdir + "/flow/fw_" + std::to_string(g));
+        MakeDirectories(vdir + "/flow/bw_" + std::to_string(g));
+      }
+    }
+    std::vector<Pose> init, gt;
+    for (const Frame& f : video.frames) {
+      init.push_back(f.root_pose_init);
+      if (f.root_pose_gt) gt.push_back(*f.root_pose_gt);
+    }
+    WritePoseFile(vdir + "/" + internal::kPosesInitName, init);
+    if (mv.present.root_poses_gt) WritePoseFile(vdir + "/" + internal::kPosesGtName, gt);
+    for (int t = 0; t < mv.frames; ++t) jobs.push_back({v, t});
+  }
+  std::vector<std::exception_ptr> errors(jobs.size());
+  ParallelFor(static_cast<int>(jobs.size()), [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      const int v = jobs[i].video;
+      const int t = jobs[i].frame;
+      try {
+        WriteFrame(dataset, dataset.videos[v], t, temp + "/" + dataset.videos[v].name,
+                   manifest.videos[v], manifest, options,
+                   gt_meshes != nullptr ? &(*gt_meshes)[v][t] : nullptr);
+      } catch (...) {
+        errors[i] = std::current_exception();
+        return;  // stop this chunk at its first error
+      }
+    }
+  });
+  for (const std::exception_ptr& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+}
+
+// Flushes our files and folders (fsync each: unlike syncfs this does not
+// wait for other programs' dirty data on the same file system).
+void SyncTree(const std::string& dir) {
+  std::error_code ec;
+  std::vector<std::string> to_sync;
+  for (auto it = fs::recursive_directory_iterator(dir, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    to_sync.push_back(it->path().string());
+  }
+  to_sync.push_back(dir);
+  ParallelFor(static_cast<int>(to_sync.size()), [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      const int fd = ::open(to_sync[i].c_str(), O_RDONLY);
+      if (fd >= 0) {
+        ::fsync(fd);
+        ::close(fd);
+      }
+    }
+  });
+}
+
+// Puts `temp` in place of `target`. An existing (empty or, with overwrite,
+// old) folder is moved aside first and removed only after the rename
+// succeeded.
+void MoveIntoPlace(const std::string& temp, const fs::path& target, std::random_device* rd) {
+  std::error_code ec;
+  std::string old;
+  if (fs::exists(target, ec)) {
+    old = target.string() + ".old-" + std::to_string(::getpid()) + "-" +
+          std::to_string((*rd)() % 1000000);
+    fs::rename(target, old, ec);
+    if (ec) {
+      ThrowInputError(target.string(), ": could not move the old folder aside: ", ec.message());
+    }
+  }
+  fs::rename(temp, target, ec);
+  if (ec) {
+    const std::string reason = ec.message();
+    if (!old.empty()) fs::rename(old, target, ec);  // restore
+    ThrowInputError(target.string(), ": could not rename the written dataset into place: ", reason);
+  }
+  if (!old.empty()) fs::remove_all(old, ec);
+  const std::string parent =
+      target.parent_path().empty() ? std::string(".") : target.parent_path().string();
+  const int parent_fd = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY);
+  if (parent_fd >= 0) {
+    ::fsync(parent_fd);  // make the rename durable
+    ::close(parent_fd);
+  }
+}
+
+}  // namespace
+
+void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOptions& options,
+                  const std::vector<std::vector<TriangleMesh>>* gt_meshes) {
+  options.Check();
+  if (dir.empty()) ThrowInputError("WriteDataset: empty output folder name");
+  const internal::Manifest manifest = CheckedManifest(dataset, options, gt_meshes);
+  const fs::path target = CheckedTarget(dir, options.overwrite);
   if (!target.parent_path().empty()) MakeDirectories(target.parent_path().string());
   std::random_device rd;
   const std::string temp =
       target.string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd() % 1000000);
   MakeDirectories(temp);
   try {
-    WriteFileAtomic(temp + "/" + internal::kManifestName, internal::EmitManifest(manifest));
-    struct Job {
-      int video;
-      int frame;
-    };
-    std::vector<Job> jobs;
-    for (int v = 0; v < static_cast<int>(dataset.videos.size()); ++v) {
-      const Video& video = dataset.videos[v];
-      const internal::ManifestVideo& mv = manifest.videos[v];
-      const std::string vdir = temp + "/" + video.name;
-      MakeDirectories(vdir + "/rgb");
-      MakeDirectories(vdir + "/mask");
-      if (mv.present.features) MakeDirectories(vdir + "/features");
-      if (mv.present.depth) MakeDirectories(vdir + "/depth");
-      if (mv.present.gt_mesh) MakeDirectories(vdir + "/gt_mesh");
-      if (mv.present.flow) {
-        for (int g : manifest.flow_gaps) {
-          MakeDirectories(vdir + "/flow/fw_" + std::to_string(g));
-          MakeDirectories(vdir + "/flow/bw_" + std::to_string(g));
-        }
-      }
-      std::vector<Pose> init, gt;
-      for (const Frame& f : video.frames) {
-        init.push_back(f.root_pose_init);
-        if (f.root_pose_gt) gt.push_back(*f.root_pose_gt);
-      }
-      WritePoseFile(vdir + "/" + internal::kPosesInitName, init);
-      if (mv.present.root_poses_gt) WritePoseFile(vdir + "/" + internal::kPosesGtName, gt);
-      for (int t = 0; t < mv.frames; ++t) jobs.push_back({v, t});
-    }
-    std::vector<std::exception_ptr> errors(jobs.size());
-    ParallelFor(static_cast<int>(jobs.size()), [&](int begin, int end) {
-      for (int i = begin; i < end; ++i) {
-        const int v = jobs[i].video;
-        const int t = jobs[i].frame;
-        try {
-          WriteFrame(dataset, dataset.videos[v], t, temp + "/" + dataset.videos[v].name,
-                     manifest.videos[v], manifest, options,
-                     gt_meshes != nullptr ? &(*gt_meshes)[v][t] : nullptr);
-        } catch (...) {
-          errors[i] = std::current_exception();
-          return;  // stop this chunk at its first error
-        }
-      }
-    });
-    for (const std::exception_ptr& e : errors) {
-      if (e) std::rethrow_exception(e);
-    }
-    // Flush our files and folders (fsync each: unlike syncfs this does not
-    // wait for other programs' dirty data on the same file system).
-    std::vector<std::string> to_sync;
-    for (auto it = fs::recursive_directory_iterator(temp, ec);
-         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-      to_sync.push_back(it->path().string());
-    }
-    to_sync.push_back(temp);
-    ParallelFor(static_cast<int>(to_sync.size()), [&](int begin, int end) {
-      for (int i = begin; i < end; ++i) {
-        const int fd = ::open(to_sync[i].c_str(), O_RDONLY);
-        if (fd >= 0) {
-          ::fsync(fd);
-          ::close(fd);
-        }
-      }
-    });
-    // Put it in place. An existing (empty or, with overwrite, old) folder is
-    // moved aside first and removed only after the rename succeeded.
-    std::string old;
-    if (fs::exists(target, ec)) {
-      old = target.string() + ".old-" + std::to_string(::getpid()) + "-" +
-            std::to_string(rd() % 1000000);
-      fs::rename(target, old, ec);
-      if (ec)
-        ThrowInputError(target.string(), ": could not move the old folder aside: ", ec.message());
-    }
-    fs::rename(temp, target, ec);
-    if (ec) {
-      const std::string reason = ec.message();
-      if (!old.empty()) fs::rename(old, target, ec);  // restore
-      ThrowInputError(target.string(),
-                      ": could not rename the written dataset into place: ", reason);
-    }
-    if (!old.empty()) fs::remove_all(old, ec);
-    const std::string parent =
-        target.parent_path().empty() ? std::string(".") : target.parent_path().string();
-    const int parent_fd = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY);
-    if (parent_fd >= 0) {
-      ::fsync(parent_fd);  // make the rename durable
-      ::close(parent_fd);
-    }
+    WriteContents(dataset, manifest, options, gt_meshes, temp);
+    SyncTree(temp);
+    MoveIntoPlace(temp, target, &rd);
   } catch (...) {
+    std::error_code ec;
     fs::remove_all(temp, ec);
     throw;
   }

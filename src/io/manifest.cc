@@ -87,6 +87,147 @@ void CheckIntrinsics(const Eigen::Vector4d& k, int width, int height, const std:
   }
 }
 
+namespace {
+
+FlowEncoding ReadFlowEncoding(const YAML::Node& node, const std::string& path) {
+  const std::string e = As<std::string>(node, path, "flow_encoding", "kitti_png16 or npy");
+  if (e == "kitti_png16") return FlowEncoding::kKittiPng16;
+  if (e == "npy") return FlowEncoding::kNpy;
+  ThrowInputError(path, ": key 'flow_encoding' is '", e, "', expected kitti_png16 or npy");
+}
+
+DepthEncoding ReadDepthEncoding(const YAML::Node& node, const std::string& path) {
+  const std::string e = As<std::string>(node, path, "depth_encoding", "png16 or npy");
+  if (e == "png16") return DepthEncoding::kPng16;
+  if (e == "npy") return DepthEncoding::kNpy;
+  ThrowInputError(path, ": key 'depth_encoding' is '", e, "', expected png16 or npy");
+}
+
+// The top-level keys other than `videos`.
+void ReadHeader(const YAML::Node& root, const std::string& path, Manifest* m) {
+  const std::string top = "the manifest";
+  const std::string format =
+      As<std::string>(Required(root, "format", path, top), path, "format", "a string");
+  if (format != kFormatName) {
+    ThrowInputError(path, ": key 'format' is '", format, "', expected '", kFormatName, "'");
+  }
+  m->version = As<int>(Required(root, "version", path, top), path, "version", "an integer");
+  if (m->version != kDatasetFormatVersion) {
+    ThrowInputError(path, ": unsupported format version ", m->version, " (this program reads ",
+                    kDatasetFormatVersion, ")");
+  }
+  m->feature_dim =
+      As<int>(Required(root, "feature_dim", path, top), path, "feature_dim", "an integer");
+  if (m->feature_dim != kFeatureDim) {
+    ThrowInputError(path, ": key 'feature_dim' is ", m->feature_dim, ", expected ", kFeatureDim);
+  }
+  const YAML::Node gaps = Required(root, "flow_gaps", path, top);
+  if (!gaps.IsSequence()) {
+    ThrowInputError(Where(path, gaps), ": key 'flow_gaps': expected a list of positive integers");
+  }
+  for (const auto& g : gaps) {
+    const int gap = As<int>(g, path, "flow_gaps", "a list of positive integers");
+    if (gap <= 0 || gap >= 100000) {
+      ThrowInputError(Where(path, g), ": key 'flow_gaps': gap ", gap, " is not in [1, 99999]");
+    }
+    m->flow_gaps.push_back(gap);
+  }
+  std::sort(m->flow_gaps.begin(), m->flow_gaps.end());
+  if (std::adjacent_find(m->flow_gaps.begin(), m->flow_gaps.end()) != m->flow_gaps.end()) {
+    ThrowInputError(Where(path, gaps), ": key 'flow_gaps': duplicate gap");
+  }
+  if (root["flow_encoding"]) m->flow_encoding = ReadFlowEncoding(root["flow_encoding"], path);
+  if (root["depth_encoding"]) m->depth_encoding = ReadDepthEncoding(root["depth_encoding"], path);
+  if (root["depth_unit"]) {
+    m->depth_unit = As<double>(root["depth_unit"], path, "depth_unit", "a positive number");
+    if (!(std::isfinite(m->depth_unit) && m->depth_unit > 0)) {
+      ThrowInputError(path, ": key 'depth_unit' must be a positive finite number");
+    }
+  }
+}
+
+// The `present` list of a video entry.
+VideoContents ReadPresent(const YAML::Node& present, const std::string& path,
+                          const std::string& vctx) {
+  if (!present.IsSequence()) {
+    ThrowInputError(Where(path, present), ": ", vctx, ".present: expected a list");
+  }
+  std::set<std::string> items;
+  for (const auto& p : present) {
+    const std::string item = As<std::string>(p, path, vctx + ".present", "a list of names");
+    const bool known = std::any_of(std::begin(kRequiredData), std::end(kRequiredData),
+                                   [&](const char* n) { return item == n; }) ||
+                       std::any_of(std::begin(kOptionalData), std::end(kOptionalData),
+                                   [&](const char* n) { return item == n; });
+    if (!known) {
+      ThrowInputError(Where(path, p), ": unknown entry '", item, "' in ", vctx,
+                      ".present (expected rgb, mask, root_poses_init, flow, features, depth, "
+                      "gt_mesh, root_poses_gt)");
+    }
+    items.insert(item);
+  }
+  for (const char* req : kRequiredData) {
+    if (items.count(req) == 0) {
+      ThrowInputError(Where(path, present), ": ", vctx, ".present must list '", req, "'");
+    }
+  }
+  VideoContents c;
+  c.flow = items.count("flow") > 0;
+  c.features = items.count("features") > 0;
+  c.depth = items.count("depth") > 0;
+  c.gt_mesh = items.count("gt_mesh") > 0;
+  c.root_poses_gt = items.count("root_poses_gt") > 0;
+  return c;
+}
+
+// Entry `i` of `videos`; `names` collects the names seen so far.
+ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::string& path,
+                             const Manifest& m, std::set<std::string>* names) {
+  const std::string ctx = "videos[" + std::to_string(i) + "]";
+  CheckKeys(v, path, ctx, {"name", "frames", "width", "height", "intrinsics", "present"});
+  ManifestVideo mv;
+  mv.name = As<std::string>(Required(v, "name", path, ctx), path, ctx + ".name", "a string");
+  CheckVideoName(mv.name, Where(path, v["name"]));
+  if (!names->insert(mv.name).second) {
+    ThrowInputError(Where(path, v["name"]), ": duplicate video name '", mv.name, "'");
+  }
+  const std::string vctx = ctx + " ('" + mv.name + "')";
+  mv.frames =
+      As<int>(Required(v, "frames", path, vctx), path, vctx + ".frames", "a positive integer");
+  mv.width = As<int>(Required(v, "width", path, vctx), path, vctx + ".width", "a positive integer");
+  mv.height =
+      As<int>(Required(v, "height", path, vctx), path, vctx + ".height", "a positive integer");
+  if (mv.frames <= 0 || mv.frames > 100000) {
+    ThrowInputError(Where(path, v["frames"]), ": ", vctx, ".frames = ", mv.frames,
+                    ", expected 1..100000");
+  }
+  if (mv.width <= 0 || mv.height <= 0 || mv.width > 32768 || mv.height > 32768) {
+    ThrowInputError(Where(path, v), ": ", vctx, ": image size ", mv.width, "x", mv.height,
+                    " is not in 1..32768");
+  }
+  const YAML::Node k = Required(v, "intrinsics", path, vctx);
+  if (!k.IsSequence() || k.size() != 4) {
+    ThrowInputError(Where(path, k), ": ", vctx, ".intrinsics: expected [fx, fy, cx, cy]");
+  }
+  for (int j = 0; j < 4; ++j) {
+    mv.intrinsics[j] = As<double>(k[j], path, vctx + ".intrinsics", "4 numbers");
+  }
+  CheckIntrinsics(mv.intrinsics, mv.width, mv.height, Where(path, k) + ": " + vctx + ".intrinsics");
+  const YAML::Node present = Required(v, "present", path, vctx);
+  mv.present = ReadPresent(present, path, vctx);
+  if (mv.present.flow && m.flow_gaps.empty()) {
+    ThrowInputError(Where(path, present), ": ", vctx,
+                    ".present lists 'flow' but flow_gaps is empty");
+  }
+  if (mv.present.depth && m.depth_encoding == DepthEncoding::kPng16 && m.depth_unit <= 0) {
+    ThrowInputError(path, ": key 'depth_unit' is required with 16-bit PNG depth (", vctx,
+                    " has depth)");
+  }
+  return mv;
+}
+
+}  // namespace
+
 Manifest ReadManifest(const std::string& path) {
   YAML::Node root;
   try {
@@ -101,141 +242,14 @@ Manifest ReadManifest(const std::string& path) {
             {"format", "version", "feature_dim", "flow_gaps", "flow_encoding", "depth_encoding",
              "depth_unit", "videos"});
   Manifest m;
-  const std::string format =
-      As<std::string>(Required(root, "format", path, top), path, "format", "a string");
-  if (format != kFormatName) {
-    ThrowInputError(path, ": key 'format' is '", format, "', expected '", kFormatName, "'");
-  }
-  m.version = As<int>(Required(root, "version", path, top), path, "version", "an integer");
-  if (m.version != kDatasetFormatVersion) {
-    ThrowInputError(path, ": unsupported format version ", m.version, " (this program reads ",
-                    kDatasetFormatVersion, ")");
-  }
-  m.feature_dim =
-      As<int>(Required(root, "feature_dim", path, top), path, "feature_dim", "an integer");
-  if (m.feature_dim != kFeatureDim) {
-    ThrowInputError(path, ": key 'feature_dim' is ", m.feature_dim, ", expected ", kFeatureDim);
-  }
-  const YAML::Node gaps = Required(root, "flow_gaps", path, top);
-  if (!gaps.IsSequence()) {
-    ThrowInputError(Where(path, gaps), ": key 'flow_gaps': expected a list of positive integers");
-  }
-  for (const auto& g : gaps) {
-    const int gap = As<int>(g, path, "flow_gaps", "a list of positive integers");
-    if (gap <= 0 || gap >= 100000) {
-      ThrowInputError(Where(path, g), ": key 'flow_gaps': gap ", gap, " is not in [1, 99999]");
-    }
-    m.flow_gaps.push_back(gap);
-  }
-  std::sort(m.flow_gaps.begin(), m.flow_gaps.end());
-  if (std::adjacent_find(m.flow_gaps.begin(), m.flow_gaps.end()) != m.flow_gaps.end()) {
-    ThrowInputError(Where(path, gaps), ": key 'flow_gaps': duplicate gap");
-  }
-  if (root["flow_encoding"]) {
-    const std::string e =
-        As<std::string>(root["flow_encoding"], path, "flow_encoding", "kitti_png16 or npy");
-    if (e == "kitti_png16") {
-      m.flow_encoding = FlowEncoding::kKittiPng16;
-    } else if (e == "npy") {
-      m.flow_encoding = FlowEncoding::kNpy;
-    } else {
-      ThrowInputError(path, ": key 'flow_encoding' is '", e, "', expected kitti_png16 or npy");
-    }
-  }
-  if (root["depth_encoding"]) {
-    const std::string e =
-        As<std::string>(root["depth_encoding"], path, "depth_encoding", "png16 or npy");
-    if (e == "png16") {
-      m.depth_encoding = DepthEncoding::kPng16;
-    } else if (e == "npy") {
-      m.depth_encoding = DepthEncoding::kNpy;
-    } else {
-      ThrowInputError(path, ": key 'depth_encoding' is '", e, "', expected png16 or npy");
-    }
-  }
-  if (root["depth_unit"]) {
-    m.depth_unit = As<double>(root["depth_unit"], path, "depth_unit", "a positive number");
-    if (!(std::isfinite(m.depth_unit) && m.depth_unit > 0)) {
-      ThrowInputError(path, ": key 'depth_unit' must be a positive finite number");
-    }
-  }
-
+  ReadHeader(root, path, &m);
   const YAML::Node videos = Required(root, "videos", path, top);
   if (!videos.IsSequence() || videos.size() == 0) {
     ThrowInputError(Where(path, videos), ": key 'videos': expected a non-empty list");
   }
   std::set<std::string> names;
   for (std::size_t i = 0; i < videos.size(); ++i) {
-    const YAML::Node v = videos[i];
-    const std::string ctx = "videos[" + std::to_string(i) + "]";
-    CheckKeys(v, path, ctx, {"name", "frames", "width", "height", "intrinsics", "present"});
-    ManifestVideo mv;
-    mv.name = As<std::string>(Required(v, "name", path, ctx), path, ctx + ".name", "a string");
-    CheckVideoName(mv.name, Where(path, v["name"]));
-    if (!names.insert(mv.name).second) {
-      ThrowInputError(Where(path, v["name"]), ": duplicate video name '", mv.name, "'");
-    }
-    const std::string vctx = ctx + " ('" + mv.name + "')";
-    mv.frames =
-        As<int>(Required(v, "frames", path, vctx), path, vctx + ".frames", "a positive integer");
-    mv.width =
-        As<int>(Required(v, "width", path, vctx), path, vctx + ".width", "a positive integer");
-    mv.height =
-        As<int>(Required(v, "height", path, vctx), path, vctx + ".height", "a positive integer");
-    if (mv.frames <= 0 || mv.frames > 100000) {
-      ThrowInputError(Where(path, v["frames"]), ": ", vctx, ".frames = ", mv.frames,
-                      ", expected 1..100000");
-    }
-    if (mv.width <= 0 || mv.height <= 0 || mv.width > 32768 || mv.height > 32768) {
-      ThrowInputError(Where(path, v), ": ", vctx, ": image size ", mv.width, "x", mv.height,
-                      " is not in 1..32768");
-    }
-    const YAML::Node k = Required(v, "intrinsics", path, vctx);
-    if (!k.IsSequence() || k.size() != 4) {
-      ThrowInputError(Where(path, k), ": ", vctx, ".intrinsics: expected [fx, fy, cx, cy]");
-    }
-    for (int j = 0; j < 4; ++j) {
-      mv.intrinsics[j] = As<double>(k[j], path, vctx + ".intrinsics", "4 numbers");
-    }
-    CheckIntrinsics(mv.intrinsics, mv.width, mv.height,
-                    Where(path, k) + ": " + vctx + ".intrinsics");
-    const YAML::Node present = Required(v, "present", path, vctx);
-    if (!present.IsSequence()) {
-      ThrowInputError(Where(path, present), ": ", vctx, ".present: expected a list");
-    }
-    std::set<std::string> items;
-    for (const auto& p : present) {
-      const std::string item = As<std::string>(p, path, vctx + ".present", "a list of names");
-      const bool known = std::any_of(std::begin(kRequiredData), std::end(kRequiredData),
-                                     [&](const char* n) { return item == n; }) ||
-                         std::any_of(std::begin(kOptionalData), std::end(kOptionalData),
-                                     [&](const char* n) { return item == n; });
-      if (!known) {
-        ThrowInputError(Where(path, p), ": unknown entry '", item, "' in ", vctx,
-                        ".present (expected rgb, mask, root_poses_init, flow, features, depth, "
-                        "gt_mesh, root_poses_gt)");
-      }
-      items.insert(item);
-    }
-    for (const char* req : kRequiredData) {
-      if (items.count(req) == 0) {
-        ThrowInputError(Where(path, present), ": ", vctx, ".present must list '", req, "'");
-      }
-    }
-    mv.present.flow = items.count("flow") > 0;
-    mv.present.features = items.count("features") > 0;
-    mv.present.depth = items.count("depth") > 0;
-    mv.present.gt_mesh = items.count("gt_mesh") > 0;
-    mv.present.root_poses_gt = items.count("root_poses_gt") > 0;
-    if (mv.present.flow && m.flow_gaps.empty()) {
-      ThrowInputError(Where(path, present), ": ", vctx,
-                      ".present lists 'flow' but flow_gaps is empty");
-    }
-    if (mv.present.depth && m.depth_encoding == DepthEncoding::kPng16 && m.depth_unit <= 0) {
-      ThrowInputError(path, ": key 'depth_unit' is required with 16-bit PNG depth (", vctx,
-                      " has depth)");
-    }
-    m.videos.push_back(mv);
+    m.videos.push_back(ReadVideoEntry(videos[i], i, path, m, &names));
   }
   return m;
 }

@@ -136,97 +136,151 @@ cv::Mat ConvertMask(const cv::Mat& raw, MaskFormat format, bool binary_01,
   return out;
 }
 
-Dataset PrepareDataset(const PrepareOptions& options) {
-  options.Check();
-  Timer timer;
-  // 1. Frames (RGB).
-  std::vector<cv::Mat> frames;
-  std::vector<std::string> stems;
-  if (!options.frames_dir.empty()) {
-    const auto files =
-        ListFiles(options.frames_dir, {".png", ".jpg", ".jpeg", ".bmp"}, "frame images");
-    const int n = options.max_frames > 0
-                      ? std::min<int>(options.max_frames, static_cast<int>(files.size()))
-                      : static_cast<int>(files.size());
-    frames.resize(n);
-    for (int t = 0; t < n; ++t) stems.push_back(files[t].stem().string());
-    std::vector<std::exception_ptr> errors(n);
-    ParallelFor(n, [&](int begin, int end) {
-      for (int t = begin; t < end; ++t) {
-        try {
-          const cv::Mat bgr = cv::imread(files[t].string(), cv::IMREAD_COLOR);
-          if (bgr.empty()) ThrowInputError(files[t].string(), ": unreadable image");
-          cv::cvtColor(bgr, frames[t], cv::COLOR_BGR2RGB);
-        } catch (...) {
-          errors[t] = std::current_exception();
-        }
-      }
-    });
-    for (const auto& e : errors) {
-      if (e) std::rethrow_exception(e);
-    }
-  } else {
-    cv::VideoCapture cap(options.video_path);
-    if (!cap.isOpened()) ThrowInputError(options.video_path, ": cannot open the video file");
-    cv::Mat bgr;
-    while (cap.read(bgr)) {
-      if (bgr.empty()) break;
-      if (bgr.type() != CV_8UC3) ThrowInputError(options.video_path, ": expected 8-bit colour");
-      cv::Mat rgb;
-      cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-      frames.push_back(rgb);
-      if (options.max_frames > 0 && static_cast<int>(frames.size()) >= options.max_frames) break;
-    }
-    if (frames.empty()) ThrowInputError(options.video_path, ": no frames could be decoded");
-  }
-  const std::string source = options.frames_dir.empty() ? options.video_path : options.frames_dir;
-  const int n = static_cast<int>(frames.size());
-  const int w = frames[0].cols;
-  const int h = frames[0].rows;
-  for (int t = 0; t < n; ++t) {
-    if (frames[t].cols != w || frames[t].rows != h) {
-      ThrowInputError(source, ": frame ", t, (stems.empty() ? "" : " (" + stems[t] + ")"), " is ",
-                      frames[t].cols, "x", frames[t].rows, ", frame 0 is ", w, "x", h);
-    }
-  }
-  LOG(INFO) << "prepare: " << n << " frames of " << w << "x" << h << " from " << source;
+namespace {
 
-  // 2. Masks.
-  const auto mask_files =
-      MatchToFrames(ListFiles(options.masks_dir, {".png", ".bmp", ".jpg", ".jpeg"}, "mask images"),
-                    stems, n, options.masks_dir, "mask");
-  std::vector<cv::Mat> raw_masks(n);
+// The frames of the video (RGB) and, for a frames folder, their files.
+struct RawFrames {
+  std::string source;              // the frames folder or video file
+  std::vector<cv::Mat> rgb;        // CV_8UC3, RGB
+  std::vector<std::string> stems;  // file-name stems (frames folder only)
+  std::vector<std::string> files;  // file paths (frames folder only)
+  int width = 0;
+  int height = 0;
+};
+
+RawFrames ReadFrameImages(const PrepareOptions& options) {
+  RawFrames out;
+  out.source = options.frames_dir;
+  const auto files =
+      ListFiles(options.frames_dir, {".png", ".jpg", ".jpeg", ".bmp"}, "frame images");
+  const int n = options.max_frames > 0
+                    ? std::min<int>(options.max_frames, static_cast<int>(files.size()))
+                    : static_cast<int>(files.size());
+  out.rgb.resize(n);
   for (int t = 0; t < n; ++t) {
-    raw_masks[t] = cv::imread(mask_files[t].string(), cv::IMREAD_GRAYSCALE);
-    if (raw_masks[t].empty()) ThrowInputError(mask_files[t].string(), ": unreadable mask image");
-    if (raw_masks[t].cols != w || raw_masks[t].rows != h) {
-      ThrowInputError(mask_files[t].string(), ": mask is ", raw_masks[t].cols, "x",
-                      raw_masks[t].rows, ", the frames are ", w, "x", h);
+    out.stems.push_back(files[t].stem().string());
+    out.files.push_back(files[t].string());
+  }
+  std::vector<std::exception_ptr> errors(n);
+  ParallelFor(n, [&](int begin, int end) {
+    for (int t = begin; t < end; ++t) {
+      try {
+        const cv::Mat bgr = cv::imread(files[t].string(), cv::IMREAD_COLOR);
+        if (bgr.empty()) ThrowInputError(files[t].string(), ": unreadable image");
+        cv::cvtColor(bgr, out.rgb[t], cv::COLOR_BGR2RGB);
+      } catch (...) {
+        errors[t] = std::current_exception();
+      }
+    }
+  });
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  return out;
+}
+
+RawFrames ReadVideoFile(const PrepareOptions& options) {
+  RawFrames out;
+  out.source = options.video_path;
+  cv::VideoCapture cap(options.video_path);
+  if (!cap.isOpened()) {
+    ThrowInputError(options.video_path,
+                    ": cannot open the video file (OpenCV VideoCapture: unknown container or "
+                    "codec; try extracting the frames with ffmpeg and use --frames)");
+  }
+  cv::Mat bgr;
+  while (cap.read(bgr)) {
+    if (bgr.empty()) break;
+    if (bgr.type() != CV_8UC3) ThrowInputError(options.video_path, ": expected 8-bit colour");
+    cv::Mat rgb;
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    out.rgb.push_back(rgb);
+    if (options.max_frames > 0 && static_cast<int>(out.rgb.size()) >= options.max_frames) break;
+  }
+  if (out.rgb.empty()) ThrowInputError(options.video_path, ": no frames could be decoded");
+  return out;
+}
+
+// Frames from the folder or the video file, all of the same size.
+RawFrames ReadFrames(const PrepareOptions& options) {
+  RawFrames f = options.frames_dir.empty() ? ReadVideoFile(options) : ReadFrameImages(options);
+  f.width = f.rgb[0].cols;
+  f.height = f.rgb[0].rows;
+  for (std::size_t t = 0; t < f.rgb.size(); ++t) {
+    if (f.rgb[t].cols != f.width || f.rgb[t].rows != f.height) {
+      const std::string first = f.files.empty() ? "frame 0" : f.files[0];
+      const std::string offending =
+          f.files.empty() ? f.source + ": frame " + std::to_string(t) : f.files[t];
+      ThrowInputError(offending, ": frame is ", f.rgb[t].cols, "x", f.rgb[t].rows, ", but ", first,
+                      " is ", f.width, "x", f.height,
+                      " (every frame of a video must have the same size)");
     }
   }
-  MaskFormat format = options.mask_format;
+  LOG(INFO) << "prepare: " << f.rgb.size() << " frames of " << f.width << "x" << f.height
+            << " from " << f.source;
+  return f;
+}
+
+// The raw mask images (CV_8UC1, frame size) and their files.
+struct RawMasks {
+  std::vector<cv::Mat> images;
+  std::vector<fs::path> files;
+};
+
+RawMasks ReadMasks(const PrepareOptions& options, const RawFrames& frames) {
+  const int n = static_cast<int>(frames.rgb.size());
+  RawMasks out;
+  out.files =
+      MatchToFrames(ListFiles(options.masks_dir, {".png", ".bmp", ".jpg", ".jpeg"}, "mask images"),
+                    frames.stems, n, options.masks_dir, "mask");
+  out.images.resize(n);
+  for (int t = 0; t < n; ++t) {
+    const std::string file = out.files[t].string();
+    cv::Mat& m = out.images[t];
+    m = cv::imread(file, cv::IMREAD_GRAYSCALE);
+    if (m.empty()) ThrowInputError(file, ": unreadable mask image");
+    if (m.cols == frames.width && m.rows == frames.height) continue;
+    const std::string frame = frames.files.empty() ? "frame " + std::to_string(t) : frames.files[t];
+    if (!options.resize_masks) {
+      ThrowInputError(file, ": mask is ", m.cols, "x", m.rows, ", its frame (", frame, ") is ",
+                      frames.width, "x", frames.height,
+                      " (masks must have the frames' size; --resize-masks scales them)");
+    }
+    if (t == 0) {
+      LOG(WARNING) << "prepare: resizing masks from " << m.cols << "x" << m.rows << " to "
+                   << frames.width << "x" << frames.height << " (nearest neighbour)";
+    }
+    cv::resize(m, m, cv::Size(frames.width, frames.height), 0, 0, cv::INTER_NEAREST);
+  }
+  return out;
+}
+
+// The mask format to use (detected for kAuto) and whether binary masks are 0/1.
+MaskFormat DetectMaskFormat(const RawMasks& masks, MaskFormat format, bool* binary_01) {
   // Which values occur (for auto detection and the 0/1 reading).
   std::array<bool, 256> used{};
   std::array<int, 256> first_file{};
-  for (int t = 0; t < n; ++t) {
-    for (int r = 0; r < h; ++r) {
-      const unsigned char* p = raw_masks[t].ptr<unsigned char>(r);
-      for (int c = 0; c < w; ++c) {
-        if (!used[p[c]]) first_file[p[c]] = t;
+  for (std::size_t t = 0; t < masks.images.size(); ++t) {
+    const cv::Mat& m = masks.images[t];
+    for (int r = 0; r < m.rows; ++r) {
+      const unsigned char* p = m.ptr<unsigned char>(r);
+      for (int c = 0; c < m.cols; ++c) {
+        if (!used[p[c]]) first_file[p[c]] = static_cast<int>(t);
         used[p[c]] = true;
       }
     }
   }
-  const int max_value = [&] {
-    for (int v = 255; v >= 0; --v) {
-      if (used[v]) return v;
+  int max_value = 0;
+  for (int v = 255; v >= 0; --v) {
+    if (used[v]) {
+      max_value = v;
+      break;
     }
-    return 0;
-  }();
+  }
   if (format == MaskFormat::kAuto) {
     for (int v = 0; v < 256; ++v) {
       if (used[v] && v != 0 && v != 1 && v != 128 && v != 255) {
-        ThrowInputError(mask_files[first_file[v]].string(), ": mask value ", v,
+        ThrowInputError(masks.files[first_file[v]].string(), ": mask value ", v,
                         " is not 0, 1, 128 or 255, so the mask format cannot be detected "
                         "(use --mask-format binary to threshold at 128, or banmo)");
       }
@@ -236,38 +290,60 @@ Dataset PrepareDataset(const PrepareOptions& options) {
               << (format == MaskFormat::kBanmo ? "BANMo (128 = object, 255 = ignore)"
                                                : (max_value <= 1 ? "binary 0/1" : "binary 0/255"));
   }
-  const bool binary_01 = format == MaskFormat::kBinary && max_value <= 1;
+  *binary_01 = format == MaskFormat::kBinary && max_value <= 1;
+  return format;
+}
 
-  // 3. Optional features and poses.
+// Reads one feature file: float16, zero outside the mask.
+cv::Mat ReadFeatures(const std::string& path, const cv::Mat& mask) {
+  const int w = mask.cols, h = mask.rows;
+  const cv::Mat m = ReadNpy(path);
+  if ((m.depth() != CV_16F && m.depth() != CV_32F) || m.channels() != kFeatureDim || m.cols != w ||
+      m.rows != h) {
+    ThrowInputError(path, ": expected a float16 or float32 array of shape (", h, ", ", w, ", ",
+                    kFeatureDim, ")");
+  }
+  cv::Vec3i bad;
+  if (!AllFinite(m, &bad))
+    ThrowInputError(path, ": NaN or Inf at (x=", bad[1], ", y=", bad[0], ")");
+  cv::Mat half;
+  m.convertTo(half, CV_16F);
+  // Zero outside the mask (cv::Mat::setTo takes at most 4 channels).
+  const std::size_t pixel_bytes = half.elemSize();
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      if (mask.at<unsigned char>(r, c) == kMaskBackground) {
+        std::memset(half.ptr(r) + c * pixel_bytes, 0, pixel_bytes);
+      }
+    }
+  }
+  return half;
+}
+
+// Fills the frames of `video` (rgb, mask, pose, features; no flow yet).
+void BuildFrames(const PrepareOptions& options, const RawFrames& frames, const RawMasks& masks,
+                 Video* video) {
+  const int n = static_cast<int>(frames.rgb.size());
+  bool binary_01 = false;
+  const MaskFormat format = DetectMaskFormat(masks, options.mask_format, &binary_01);
   std::vector<fs::path> feature_files;
   if (!options.features_dir.empty()) {
     feature_files = MatchToFrames(ListFiles(options.features_dir, {".npy"}, "feature .npy files"),
-                                  stems, n, options.features_dir, "feature");
+                                  frames.stems, n, options.features_dir, "feature");
   }
   std::vector<Pose> poses;
   if (!options.poses_path.empty()) poses = ReadPoseFile(options.poses_path, n);
-
-  Dataset dataset;
-  dataset.flow_gaps = options.gaps;
-  std::sort(dataset.flow_gaps.begin(), dataset.flow_gaps.end());
-  Video& video = dataset.videos.emplace_back();
-  video.name = options.video_name;
-  video.camera.width = w;
-  video.camera.height = h;
-  const double focal = std::max(w, h);
-  video.camera.intrinsics =
-      options.intrinsics ? *options.intrinsics : Eigen::Vector4d(focal, focal, w / 2.0, h / 2.0);
-  video.frames.resize(n);
+  video->frames.resize(n);
   std::vector<std::exception_ptr> errors(n);
   ParallelFor(n, [&](int begin, int end) {
     for (int t = begin; t < end; ++t) {
       try {
-        Frame& f = video.frames[t];
+        Frame& f = video->frames[t];
         f.index = t;
-        f.rgb = frames[t];
-        f.mask = ConvertMask(raw_masks[t], format, binary_01, mask_files[t].string());
+        f.rgb = frames.rgb[t];
+        f.mask = ConvertMask(masks.images[t], format, binary_01, masks.files[t].string());
         if (cv::countNonZero(f.mask == kMaskObject) == 0) {
-          LOG(WARNING) << mask_files[t].string() << ": empty mask (no object pixel); frame " << t
+          LOG(WARNING) << masks.files[t].string() << ": empty mask (no object pixel); frame " << t
                        << " will be skipped";
           f.skip = true;
         }
@@ -277,31 +353,7 @@ Dataset PrepareDataset(const PrepareOptions& options) {
         } else {
           f.root_pose_init = poses[t];
         }
-        if (!feature_files.empty()) {
-          const std::string path = feature_files[t].string();
-          const cv::Mat m = ReadNpy(path);
-          if ((m.depth() != CV_16F && m.depth() != CV_32F) || m.channels() != kFeatureDim ||
-              m.cols != w || m.rows != h) {
-            ThrowInputError(path, ": expected a float16 or float32 array of shape (", h, ", ", w,
-                            ", ", kFeatureDim, ")");
-          }
-          cv::Vec3i bad;
-          if (!AllFinite(m, &bad)) {
-            ThrowInputError(path, ": NaN or Inf at (x=", bad[1], ", y=", bad[0], ")");
-          }
-          cv::Mat half;
-          m.convertTo(half, CV_16F);
-          // Zero outside the mask (cv::Mat::setTo takes at most 4 channels).
-          const std::size_t pixel_bytes = half.elemSize();
-          for (int r = 0; r < h; ++r) {
-            for (int c = 0; c < w; ++c) {
-              if (f.mask.at<unsigned char>(r, c) == kMaskBackground) {
-                std::memset(half.ptr(r) + c * pixel_bytes, 0, pixel_bytes);
-              }
-            }
-          }
-          f.features = half;
-        }
+        if (!feature_files.empty()) f.features = ReadFeatures(feature_files[t].string(), f.mask);
       } catch (...) {
         errors[t] = std::current_exception();
       }
@@ -310,15 +362,27 @@ Dataset PrepareDataset(const PrepareOptions& options) {
   for (const auto& e : errors) {
     if (e) std::rethrow_exception(e);
   }
+  int usable = 0;
+  for (const Frame& f : video->frames) usable += f.skip ? 0 : 1;
+  if (usable < 2) {
+    ThrowInputError(frames.source, ": only ", usable, " usable frame(s) of ", n,
+                    " (a frame is usable when its mask has an object pixel); a video needs at "
+                    "least 2 (masks: ",
+                    options.masks_dir, ")");
+  }
+}
 
-  // 4. Flow: for each pair (t, t + g), forward and backward DIS flow, then
-  // the forward-backward check for both directions.
+// For each pair (t, t + g), forward and backward DIS flow, then the
+// forward-backward check for both directions.
+void ComputeFlows(const std::vector<int>& gaps, const OpticalFlowOptions& options,
+                  const std::vector<cv::Mat>& rgb, Video* video) {
   struct Pair {
     int t;
     int gap;
   };
+  const int n = static_cast<int>(rgb.size());
   std::vector<Pair> pairs;
-  for (int g : dataset.flow_gaps) {
+  for (int g : gaps) {
     for (int t = 0; t + g < n; ++t) pairs.push_back({t, g});
   }
   std::vector<FlowField> forward(pairs.size()), backward(pairs.size());
@@ -326,21 +390,44 @@ Dataset PrepareDataset(const PrepareOptions& options) {
     for (int i = begin; i < end; ++i) {
       const int t = pairs[i].t;
       const int g = pairs[i].gap;
-      const cv::Mat fw = ComputeDisFlow(frames[t], frames[t + g], options.flow.preset);
-      const cv::Mat bw = ComputeDisFlow(frames[t + g], frames[t], options.flow.preset);
+      const cv::Mat fw = ComputeDisFlow(rgb[t], rgb[t + g], options.preset);
+      const cv::Mat bw = ComputeDisFlow(rgb[t + g], rgb[t], options.preset);
       forward[i].gap = g;
-      forward[i].valid = ForwardBackwardValid(fw, bw, options.flow);
+      forward[i].valid = ForwardBackwardValid(fw, bw, options);
       fw.convertTo(forward[i].flow, CV_16F);
       backward[i].gap = -g;
-      backward[i].valid = ForwardBackwardValid(bw, fw, options.flow);
+      backward[i].valid = ForwardBackwardValid(bw, fw, options);
       bw.convertTo(backward[i].flow, CV_16F);
     }
   });
   for (std::size_t i = 0; i < pairs.size(); ++i) {
-    video.frames[pairs[i].t].flows.push_back(std::move(forward[i]));
-    video.frames[pairs[i].t + pairs[i].gap].flows.push_back(std::move(backward[i]));
+    video->frames[pairs[i].t].flows.push_back(std::move(forward[i]));
+    video->frames[pairs[i].t + pairs[i].gap].flows.push_back(std::move(backward[i]));
   }
-  LOG(INFO) << "prepare: " << 2 * pairs.size() << " flow fields in " << timer.Seconds() << " s";
+}
+
+}  // namespace
+
+Dataset PrepareDataset(const PrepareOptions& options) {
+  options.Check();
+  Timer timer;
+  const RawFrames frames = ReadFrames(options);
+  const RawMasks masks = ReadMasks(options, frames);
+  Dataset dataset;
+  dataset.flow_gaps = options.gaps;
+  std::sort(dataset.flow_gaps.begin(), dataset.flow_gaps.end());
+  Video& video = dataset.videos.emplace_back();
+  video.name = options.video_name;
+  video.camera.width = frames.width;
+  video.camera.height = frames.height;
+  const double focal = std::max(frames.width, frames.height);
+  video.camera.intrinsics =
+      options.intrinsics ? *options.intrinsics
+                         : Eigen::Vector4d(focal, focal, frames.width / 2.0, frames.height / 2.0);
+  BuildFrames(options, frames, masks, &video);
+  ComputeFlows(dataset.flow_gaps, options.flow, frames.rgb, &video);
+  LOG(INFO) << "prepare: flow for " << dataset.flow_gaps.size() << " gaps in " << timer.Seconds()
+            << " s";
   return dataset;
 }
 

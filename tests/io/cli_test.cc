@@ -5,6 +5,7 @@
 
 #include <cstdlib>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
 #include <string>
 
 #include "banmo/io/dataset.h"
@@ -136,6 +137,74 @@ TEST(PrepareCommand, BadArguments) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("--video FILE or --frames DIR"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(tmp.path() + "/ds"));
+}
+
+// Three videos into one dataset: frames + masks, then a video file
+// (Motion-JPEG in AVI, OpenCV's own writer, so no external codec is
+// needed), then frames again under a chosen name; `banmo check` accepts it.
+TEST(PrepareCommand, AddsVideosToOneDatasetThatChecks) {
+  TempDir tmp;
+  const std::string p = tmp.path();
+  std::filesystem::create_directories(p + "/a/frames");
+  std::filesystem::create_directories(p + "/a/masks");
+  std::filesystem::create_directories(p + "/b/masks");
+  cv::RNG rng(5);
+  cv::VideoWriter writer(p + "/b/clip.avi", cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10,
+                         cv::Size(48, 40));
+  ASSERT_TRUE(writer.isOpened());
+  for (int t = 0; t < 5; ++t) {
+    cv::Mat frame(40, 48, CV_8UC3);
+    rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+    cv::imwrite(p + "/a/frames/" + std::to_string(t) + ".png", frame);
+    writer.write(frame);
+    cv::Mat mask(40, 48, CV_8UC1, cv::Scalar(0));
+    mask(cv::Rect(10, 10, 20, 15)).setTo(255);
+    cv::imwrite(p + "/a/masks/" + std::to_string(t) + ".png", mask);
+    cv::imwrite(p + "/b/masks/m" + std::to_string(t) + ".png", mask);
+  }
+  writer.release();
+  const std::string ds = p + "/ds";
+  RunResult r = RunBanmo(
+      tmp, "prepare --frames " + p + "/a/frames --masks " + p + "/a/masks --gaps 1,2 --out " + ds);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("video 'video_000'"), std::string::npos) << r.out;
+  r = RunBanmo(tmp,
+               "prepare --add --video " + p + "/b/clip.avi --masks " + p + "/b/masks --out " + ds);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("added to " + ds + ": video 'video_001', 5 frames of 48x40"),
+            std::string::npos)
+      << r.out;
+  const std::string add_a = "prepare --add --frames " + p + "/a/frames --masks " + p +
+                            "/a/masks --out " + ds + " --name cat_walk";
+  r = RunBanmo(tmp, add_a);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("now has 3 videos"), std::string::npos) << r.out;
+  const RunResult c = RunBanmo(tmp, "check " + ds);
+  ASSERT_EQ(c.exit_code, 0) << c.err;
+  EXPECT_NE(c.out.find("videos    3\n"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("video video_001: 5 frames, 48x40"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("video cat_walk: 5 frames"), std::string::npos) << c.out;
+  // Prepared without --features and --poses: noted, not an error.
+  EXPECT_NE(c.out.find("note: video video_001 has no pixel features"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("note: video cat_walk: every initial root pose is the same"),
+            std::string::npos)
+      << c.out;
+  const std::string manifest = ReadText(ds + "/manifest.yaml");
+
+  // Errors: a clashing name, other gaps, no dataset, --add with --overwrite.
+  r = RunBanmo(tmp, add_a);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("already has a video named 'cat_walk'"), std::string::npos) << r.err;
+  r = RunBanmo(tmp, add_a + "2 --gaps 1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("flow gaps are [1,2], the added video has [1]"), std::string::npos) << r.err;
+  r = RunBanmo(tmp, "prepare --add --frames " + p + "/a/frames --masks " + p + "/a/masks --out " +
+                        p + "/nothing");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("nothing: not a folder"), std::string::npos) << r.err;
+  EXPECT_NE(RunBanmo(tmp, add_a + "3 --overwrite").exit_code, 0);
+  EXPECT_EQ(ReadText(ds + "/manifest.yaml"), manifest);
+  EXPECT_EQ(RunBanmo(tmp, "check " + ds).exit_code, 0);
 }
 
 }  // namespace

@@ -318,5 +318,118 @@ TEST(Prepare, VideoFileInput) {
   ExpectPrepareError(o, {"missing.avi", "cannot open"});
 }
 
+TEST(Prepare, FramesOfDifferentSizesNameTheFirstOffendingFile) {
+  TempDir tmp;
+  const std::string root =
+      WriteTiny(tmp.path(), {Square(0, 255), Square(0, 255), Square(0, 255), Square(0, 255)});
+  cv::imwrite(root + "/frames/2.png", cv::Mat(20, 30, CV_8UC3, cv::Scalar::all(9)));
+  cv::imwrite(root + "/frames/3.png", cv::Mat(20, 30, CV_8UC3, cv::Scalar::all(9)));
+  ExpectPrepareError(TinyOptions(root), {"frames/2.png", "30x20", "frames/0.png", "32x24"});
+}
+
+TEST(Prepare, FewerThanTwoUsableFramesIsAnError) {
+  TempDir tmp;
+  const cv::Mat empty(24, 32, CV_8UC1, cv::Scalar(0));
+  const std::string root = WriteTiny(tmp.path(), {empty, Square(0, 255), empty});
+  ExpectPrepareError(TinyOptions(root), {"frames", "only 1 usable frame(s) of 3", "at least 2"});
+  PrepareOptions o = TinyOptions(root);
+  o.max_frames = 1;  // one frame in all
+  ExpectPrepareError(o, {"only 0 usable frame(s) of 1"});
+}
+
+TEST(Prepare, MasksOfAnotherSizeAreRefusedOrResizedOnRequest) {
+  TempDir tmp;
+  const std::string root = WriteTiny(tmp.path(), {Square(0, 255), Square(0, 255), Square(0, 255)});
+  for (int t = 0; t < 3; ++t) {
+    cv::Mat big;
+    cv::resize(Square(0, 255), big, cv::Size(64, 48), 0, 0, cv::INTER_NEAREST);
+    cv::imwrite(root + "/masks/" + std::to_string(t) + ".png", big);
+  }
+  PrepareOptions o = TinyOptions(root);
+  ExpectPrepareError(o,
+                     {"masks/0.png", "mask is 64x48", "frames/0.png", "32x24", "--resize-masks"});
+  o.resize_masks = true;
+  const Dataset d = PrepareDataset(o);
+  EXPECT_EQ(cv::countNonZero(d.videos[0].frames[1].mask == kMaskObject), 80);
+}
+
+// Two prepared videos in one dataset: AddVideosToDataset.
+Dataset TinyVideo(const std::string& root, const std::string& name) {
+  WriteTiny(root, {Square(0, 255), Square(0, 255), Square(0, 255)});
+  PrepareOptions o = TinyOptions(root);
+  o.video_name = name;
+  return PrepareDataset(o);
+}
+
+TEST(AddVideos, AddsWithoutTouchingTheExistingVideos) {
+  TempDir tmp;
+  const std::string ds = tmp.path() + "/ds";
+  WriteDataset(TinyVideo(tmp.path() + "/a", "video_000"), ds);
+  const auto before = std::filesystem::last_write_time(ds + "/video_000/rgb/00000.png");
+  EXPECT_EQ(ReadDatasetInfo(ds).video_names, std::vector<std::string>{"video_000"});
+  EXPECT_EQ(NextVideoName(ReadDatasetInfo(ds).video_names), "video_001");
+  AddVideosToDataset(TinyVideo(tmp.path() + "/b", "video_001"), ds);
+  AddVideosToDataset(TinyVideo(tmp.path() + "/c", "cat_walk"), ds + "/");  // trailing slash
+  const Dataset d = LoadDataset(ds);
+  ASSERT_EQ(d.videos.size(), 3u);
+  EXPECT_EQ(d.videos[1].name, "video_001");
+  EXPECT_EQ(d.videos[2].name, "cat_walk");
+  EXPECT_EQ(d.NumFrames(), 9);
+  EXPECT_EQ(std::filesystem::last_write_time(ds + "/video_000/rgb/00000.png"), before);
+  EXPECT_EQ(NextVideoName({"video_000", "video_001", "video_003"}), "video_002");
+  // Nothing left beside the dataset.
+  for (const auto& e : std::filesystem::directory_iterator(tmp.path())) {
+    EXPECT_EQ(e.path().filename().string().find(".add-"), std::string::npos) << e.path();
+  }
+}
+
+TEST(AddVideos, NameClashAndOtherGapsAreErrors) {
+  TempDir tmp;
+  const std::string ds = tmp.path() + "/ds";
+  WriteDataset(TinyVideo(tmp.path() + "/a", "video_000"), ds);
+  try {
+    AddVideosToDataset(TinyVideo(tmp.path() + "/b", "video_000"), ds);
+    FAIL() << "accepted a clashing name";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("already has a video named 'video_000'"),
+              std::string::npos)
+        << e.what();
+  }
+  Dataset other = TinyVideo(tmp.path() + "/c", "video_001");
+  other.flow_gaps = {1, 2};
+  try {
+    AddVideosToDataset(other, ds);
+    FAIL() << "accepted other gaps";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("flow gaps are [1], the added video has [1,2]"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(AddVideosToDataset(other, tmp.path() + "/missing"), InputError);
+  EXPECT_EQ(LoadDataset(ds).videos.size(), 1u);
+}
+
+TEST(AddVideos, FailureHalfWayLeavesTheDatasetIntact) {
+  TempDir tmp;
+  const std::string ds = tmp.path() + "/ds";
+  WriteDataset(TinyVideo(tmp.path() + "/a", "video_000"), ds);
+  const std::string manifest = testing::ReadText(ds + "/manifest.yaml");
+  Dataset bad = TinyVideo(tmp.path() + "/b", "video_001");
+  // A mask value WriteDataset refuses only when it reaches the last frame.
+  bad.videos[0].frames[2].mask.at<unsigned char>(0, 0) = 7;
+  try {
+    AddVideosToDataset(bad, ds);
+    FAIL() << "accepted a bad mask";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("mask value 7"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(testing::ReadText(ds + "/manifest.yaml"), manifest);
+  EXPECT_FALSE(std::filesystem::exists(ds + "/video_001"));
+  EXPECT_EQ(LoadDataset(ds).videos.size(), 1u);
+  for (const auto& e : std::filesystem::directory_iterator(tmp.path())) {
+    EXPECT_EQ(e.path().filename().string().find("ds."), std::string::npos) << e.path();
+  }
+}
+
 }  // namespace
 }  // namespace banmo

@@ -130,6 +130,30 @@ struct WriteOptions {
 void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOptions& options,
                   const std::vector<std::vector<TriangleMesh>>* gt_meshes = nullptr);
 
+// What a dataset's manifest says about it (validated; frames are not read).
+struct DatasetInfo {
+  std::vector<int> flow_gaps;            // sorted
+  std::vector<std::string> video_names;  // in manifest order
+};
+// Reads `dir`/manifest.yaml. Throws InputError naming the file and key.
+DatasetInfo ReadDatasetInfo(const std::string& dir);
+
+// The first of video_000, video_001, ... (the names `banmo synth` writes) that is
+// not in `taken`.
+std::string NextVideoName(const std::vector<std::string>& taken);
+
+// Adds the videos of `added` to the existing dataset in `dir` without
+// touching the videos already there. `added` must use the dataset's flow
+// gaps, and its video names must be new (a clash is an InputError naming the
+// video and the dataset). The new videos are written completely into a
+// temporary dataset beside `dir` first (WriteDataset), then their folders
+// are renamed into `dir` and the manifest is replaced last (atomic rename):
+// a failure at any point removes what was added and leaves `dir` as it was.
+// The flow and depth encodings of the dataset's manifest are kept
+// (`options.flow_encoding`, `depth_encoding` and `depth_unit` are ignored).
+void AddVideosToDataset(const Dataset& added, const std::string& dir,
+                        const WriteOptions& options = {});
+
 // Total size in bytes of the regular files below `dir` (for summaries).
 std::uintmax_t DirectoryBytes(const std::string& dir);
 

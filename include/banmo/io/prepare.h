@@ -27,10 +27,13 @@ struct PrepareOptions {
                              // mode the sorted masks are matched to frames in order)
   std::string features_dir;  // optional: one .npy (H x W x 16, float16/32) per frame, same rule
   std::string poses_path;    // optional: root poses, one "qw qx qy qz tx ty tz" line per frame
-  std::string video_name = "video0";          // folder name of the video in the dataset
+  std::string video_name = "video_000";       // folder name of the video in the dataset
   std::vector<int> gaps = {1, 2, 4, 8};       // flow frame gaps (positive, unique)
   std::optional<Eigen::Vector4d> intrinsics;  // fx, fy, cx, cy; default: max(w, h), centre
   MaskFormat mask_format = MaskFormat::kAuto;
+  // Masks of another size than their frames: false = error naming both
+  // sizes, true = resized to the frame size (nearest neighbour).
+  bool resize_masks = false;
   // Without a poses file: identity rotation, object this far along +z (scene units).
   double default_distance = 3.0;
   int max_frames = 0;  // use at most this many frames from the start (0 = all)
@@ -41,7 +44,10 @@ struct PrepareOptions {
 };
 
 // Reads everything, computes flow and returns the in-memory dataset (one
-// video). Throws InputError naming the file on any bad input.
+// video). Throws InputError naming the file on any bad input: unreadable
+// files, frames of different sizes (names the first offending file), masks
+// of another size than their frames (names both sizes), fewer than 2 frames
+// with a non-empty mask.
 Dataset PrepareDataset(const PrepareOptions& options);
 
 // Converts one mask image (CV_8UC1) to kMaskBackground/Ignore/Object.
