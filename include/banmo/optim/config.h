@@ -39,14 +39,14 @@ struct LossesConfig {
 };
 
 struct AdamConfig {
-  double lr = 5e-4;            // peak learning rate
+  double lr = 5e-4;  // peak learning rate
   double beta1 = 0.9;
   double beta2 = 0.999;
   double epsilon = 1e-8;
-  double weight_decay = 0.0;   // AdamW decoupled decay, MLP weights only
+  double weight_decay = 0.0;          // AdamW decoupled decay, MLP weights only
   std::string schedule = "onecycle";  // onecycle | constant
-  double warmup_fraction = 0.1;      // one-cycle: fraction of iterations rising to lr
-  double final_lr_fraction = 0.01;   // one-cycle: lr at the end / lr
+  double warmup_fraction = 0.1;       // one-cycle: fraction of iterations rising to lr
+  double final_lr_fraction = 0.01;    // one-cycle: lr at the end / lr
   // Per-group learning-rate multipliers (pose blocks like a larger step).
   double pose_lr_scale = 1.0;
   double bone_lr_scale = 1.0;
@@ -66,16 +66,16 @@ struct SamplingConfig {
   bool importance_depth = false;     // second pass of samples around the surface
   double near_far_margin = 0.2;      // +-20 % around the canonical bounds' depth range
   std::vector<int> flow_gaps = {1, 2, 4, 8};  // frame gaps used by the flow term
-  int eikonal_points = 256;          // canonical points per batch for the eikonal term
-  int match_grid_points = 4096;      // canonical grid of the soft-argmax
-  int match_top_k = 32;              // K of the truncated soft-argmax
+  int eikonal_points = 256;                   // canonical points per batch for the eikonal term
+  int match_grid_points = 4096;               // canonical grid of the soft-argmax
+  int match_top_k = 32;                       // K of the truncated soft-argmax
 };
 
 struct ScheduleConfig {
   std::vector<double> bone_reinit_at;  // fractions of the stage at which bones are re-initialised
   int bounds_refresh_every = 0;        // batches between canonical-bounds refreshes (0 = never)
-  double anneal_end_fraction = 0.0;    // coarse-to-fine PE annealing reaches all bands here (0 = off)
-  double delta_skinning_from = 1.0;    // fraction from which delta skinning is free (>= 1: never)
+  double anneal_end_fraction = 0.0;  // coarse-to-fine PE annealing reaches all bands here (0 = off)
+  double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)
 };
 
 // Parameter groups that can be held constant (ceres SetParameterBlockConstant).
@@ -83,8 +83,8 @@ struct ScheduleConfig {
 // delta_skinning, pose_code (docs/config.md).
 struct StageConfig {
   std::string name = "stage";
-  int iterations = 100;                 // minibatches
-  std::string step_rule = "adam";       // adam | lm | alternate
+  int iterations = 100;            // minibatches
+  std::string step_rule = "adam";  // adam | lm | alternate
   int batch_rays = 1024;
   int samples_per_ray = 32;
   LossesConfig losses;
@@ -93,15 +93,15 @@ struct StageConfig {
   LmConfig lm;
   SamplingConfig sampling;
   ScheduleConfig schedule;
-  int checkpoint_every = 0;             // batches between checkpoints (0 = end of stage only)
-  int log_every = 10;                   // batches between progress lines
+  int checkpoint_every = 0;  // batches between checkpoints (0 = end of stage only)
+  int log_every = 10;        // batches between progress lines
 };
 
 struct SolverConfig {
-  ModelOptions model;              // model.field.* = CanonicalFieldOptions fields
+  ModelOptions model;  // model.field.* = CanonicalFieldOptions fields
   std::vector<StageConfig> stages;
   uint32_t seed = 0;
-  int threads = 0;                 // 0 = all hardware threads
+  int threads = 0;  // 0 = all hardware threads
 };
 
 // Reads and validates a config file. Throws InputError naming the file and key.
