@@ -6,7 +6,7 @@ packages=(
   libceres-dev libeigen3-dev libopencv-dev libcgal-dev libflann-dev liblz4-dev
   libgoogle-glog-dev libgflags-dev libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev libcli11-dev libtinygltf-dev libstb-dev libtbb-dev
-  gnuplot-nox
+  gnuplot-nox clang-format
 )
 missing=()
 for p in "${packages[@]}"; do
