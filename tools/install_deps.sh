@@ -5,8 +5,9 @@ packages=(
   build-essential cmake ninja-build ccache pkg-config
   libceres-dev libeigen3-dev libopencv-dev libcgal-dev libflann-dev liblz4-dev
   libgoogle-glog-dev libgflags-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libyaml-cpp-dev libcli11-dev libtinygltf-dev libstb-dev libtbb-dev libdraco-dev draco nlohmann-json3-dev
-  gnuplot-nox
+  libyaml-cpp-dev libcli11-dev libtinygltf-dev libstb-dev libtbb-dev
+  libdraco-dev draco nlohmann-json3-dev
+  gnuplot-nox clang-format
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -29,7 +29,8 @@ TEST(Se3, TransformMatchesEigenIsometry) {
 
 TEST(Se3, ComposeAndInverse) {
   const Pose c_from_b = TestPose();
-  const Pose b_from_a = PoseFromAngleAxis(Eigen::Vector3d(-1.0, 0.1, 0.4), Eigen::Vector3d(1, 2, 3));
+  const Pose b_from_a =
+      PoseFromAngleAxis(Eigen::Vector3d(-1.0, 0.1, 0.4), Eigen::Vector3d(1, 2, 3));
   Pose c_from_a, a_from_b;
   PoseCompose(c_from_b.data(), b_from_a.data(), c_from_a.data());
   PoseInverse(b_from_a.data(), a_from_b.data());

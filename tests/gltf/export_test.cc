@@ -14,13 +14,13 @@
 #include <filesystem>
 #include <string>
 
+#include "../common/shared_assets.h"
 #include "banmo/extract/extract.h"
 #include "banmo/gltf/validate.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/synth/gltf_rig.h"
 #include "banmo/synth/rig.h"
 #include "banmo/util/error.h"
-#include "../common/shared_assets.h"
 #include "gltf_test_util.h"
 
 namespace banmo {
