@@ -45,8 +45,12 @@ void RayBatchOptions::Check() const {
 }
 
 RayBatch::RayBatch(Model* model, const RayBatchOptions& options)
-    : model_(model), options_(options) {
-  CHECK(model_ != nullptr);
+    : RayBatch(*CHECK_NOTNULL(model), options) {
+  mutable_model_ = model;
+}
+
+RayBatch::RayBatch(const Model& model, const RayBatchOptions& options)
+    : model_(&model), options_(options) {
   options_.Check();
   delta_skinning_ = model_->has_delta_skinning();
 }
@@ -114,33 +118,45 @@ void RayBatch::SetRays(std::vector<Ray> rays) {
   }
 }
 
+namespace {
+
+// The block pointers of a ray (const or mutable, from a const or mutable
+// model), null for absent blocks; one code path for both.
+template <class M, class Ptr>
+void FillRayBlocks(M& m, const Ray& ray, bool partner, bool delta_skinning,
+                   std::array<Ptr, kNumRayBlocks>* block) {
+  const bool bones = m.num_bones() > 0;
+  (*block)[kBlockSdf] = m.sdf();
+  (*block)[kBlockColor] = m.color();
+  (*block)[kBlockEmbedding] = m.embedding();
+  (*block)[kBlockLogBeta] = m.log_beta();
+  (*block)[kBlockAppearance] =
+      m.appearance_size() > 0 ? m.video(ray.video).appearance.data() : nullptr;
+  auto& f = m.frame(ray.video, ray.frame);
+  (*block)[kBlockRoot] = f.root_delta.data();
+  (*block)[kBlockBones] = bones ? m.bones() : nullptr;
+  (*block)[kBlockBonesT] = bones ? f.bones_t.data() : nullptr;
+  (*block)[kBlockIntrinsics] = m.video(ray.video).intrinsics.data();
+  if (partner) {
+    auto& g = m.frame(ray.video, ray.partner_frame);
+    (*block)[kBlockPartnerRoot] = g.root_delta.data();
+    (*block)[kBlockPartnerBonesT] = bones ? g.bones_t.data() : nullptr;
+  }
+  if (delta_skinning) {
+    (*block)[kBlockDeltaSkin] = m.delta_skinning_params();
+    (*block)[kBlockRestPoseCode] = m.rest_pose_code();
+    (*block)[kBlockPoseCode] = f.pose_code.data();
+  }
+}
+
+}  // namespace
+
 RayParameters RayBatch::ModelParameters(const Ray& ray) const {
   RayParameters p;
-  Model& m = *model_;
-  const bool bones = m.num_bones() > 0;
-  p.block[kBlockSdf] = m.sdf();
-  p.block[kBlockColor] = m.color();
-  p.block[kBlockEmbedding] = m.embedding();
-  p.block[kBlockLogBeta] = m.log_beta();
-  p.block[kBlockAppearance] =
-      m.appearance_size() > 0 ? m.video(ray.video).appearance.data() : nullptr;
-  const FrameParameters& f = m.frame(ray.video, ray.frame);
-  p.block[kBlockRoot] = f.root_delta.data();
-  p.root_init = f.root_init.data();
-  p.block[kBlockBones] = bones ? m.bones() : nullptr;
-  p.block[kBlockBonesT] = bones ? f.bones_t.data() : nullptr;
-  p.block[kBlockIntrinsics] = m.video(ray.video).intrinsics.data();
-  if (ray.HasTerm(LossTerm::kFlow, options_.weights)) {
-    const FrameParameters& g = m.frame(ray.video, ray.partner_frame);
-    p.block[kBlockPartnerRoot] = g.root_delta.data();
-    p.partner_root_init = g.root_init.data();
-    p.block[kBlockPartnerBonesT] = bones ? g.bones_t.data() : nullptr;
-  }
-  if (delta_skinning_) {
-    p.block[kBlockDeltaSkin] = m.delta_skinning_params();
-    p.block[kBlockRestPoseCode] = m.rest_pose_code();
-    p.block[kBlockPoseCode] = f.pose_code.data();
-  }
+  const bool partner = ray.HasTerm(LossTerm::kFlow, options_.weights);
+  FillRayBlocks(*model_, ray, partner, delta_skinning_, &p.block);
+  p.root_init = model_->frame(ray.video, ray.frame).root_init.data();
+  if (partner) p.partner_root_init = model_->frame(ray.video, ray.partner_frame).root_init.data();
   return p;
 }
 
@@ -157,9 +173,13 @@ std::vector<RayBlock> RayBatch::TermBlocks(int index, LossTerm term) const {
 }
 
 std::vector<double*> RayBatch::TermParameterBlocks(int index, LossTerm term) const {
-  const RayParameters p = ModelParameters(rays_[index]);
+  CHECK(mutable_model_ != nullptr) << "a RayBatch of a const Model has no residual blocks";
+  const Ray& ray = rays_[index];
+  std::array<double*, kNumRayBlocks> blocks{};
+  FillRayBlocks(*mutable_model_, ray, ray.HasTerm(LossTerm::kFlow, options_.weights),
+                delta_skinning_, &blocks);
   std::vector<double*> out;
-  for (RayBlock b : TermBlocks(index, term)) out.push_back(const_cast<double*>(p.block[b]));
+  for (RayBlock b : TermBlocks(index, term)) out.push_back(blocks[b]);
   return out;
 }
 

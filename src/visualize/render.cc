@@ -91,9 +91,7 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
   CHECK_GT(width, 0);
   CHECK_EQ(observed.mask.cols, width);
   CHECK_EQ(observed.flow.cols, width);
-  // RayBatch serves Ceres and so holds a mutable model pointer; EvaluateRays
-  // and ModelParameters only read it.
-  RayBatch batch(const_cast<Model*>(&model), RenderBatchOptions());
+  RayBatch batch(model, RenderBatchOptions());  // evaluation only
   const RayLossWeights& weights = batch.options().weights;
 
   RenderedFrame out;

@@ -10,7 +10,7 @@
 
 #include "banmo/losses/ray.h"
 #include "banmo/losses/ray_batch.h"
-#include "banmo/losses/test_scene.h"
+#include "common/test_scene.h"
 
 namespace banmo {
 namespace {

@@ -53,8 +53,7 @@ double ReferenceGradient(RayBatch& batch, const RayRobustLosses& robust, Gradien
 
 void ExpectGradientsEqual(const Gradient& a, const Gradient& b, const Model& model) {
   std::map<const double*, std::string> names;
-  model.ForEachBlock(
-      [&](const std::string& name, const double* data, int) { names[data] = name; });
+  model.ForEachBlock([&](const std::string& name, const double* data, int) { names[data] = name; });
   ASSERT_EQ(a.size(), b.size());
   for (const auto& [block, gb] : b) {
     ASSERT_TRUE(a.count(block)) << names[block];

@@ -63,7 +63,8 @@ TEST(Solver, LmAndAlternateStepRulesRunAndStayFinite) {
     options.quiet = true;
     const SolveResult r = solver.Run(options);
     EXPECT_TRUE(r.stages[0].finite) << EnumName(rule);
-    EXPECT_LT(Total(r.stages[0].last_losses), 10.0 * Total(r.stages[0].first_losses)) << EnumName(rule);
+    EXPECT_LT(Total(r.stages[0].last_losses), 10.0 * Total(r.stages[0].first_losses))
+        << EnumName(rule);
   }
 }
 

@@ -121,8 +121,7 @@ TEST(RenderFrame, EqualsTheFullJetReferenceResidualPlusObservation) {
   RayBatchOptions batch_options;
   batch_options.weights =
       RayLossWeights::Only({LossTerm::kRgb, LossTerm::kSilhouette, LossTerm::kFlow});
-  Model& mutable_model = const_cast<Model&>(model);  // the batch only reads it here
-  RayBatch batch(&mutable_model, batch_options);
+  RayBatch batch(model, batch_options);
   batch.SetRays(rays);
   int object_pixels = 0;
   for (size_t i = 0; i < pixels.size(); ++i) {

@@ -83,7 +83,11 @@ struct RayBatchOptions {
 
 class RayBatch : public ceres::EvaluationCallback {
  public:
+  // A batch of a model the solver changes: its cost functions are residual
+  // blocks over the model's parameter blocks.
   RayBatch(Model* model, const RayBatchOptions& options);
+  // A batch that only evaluates (renders, tau): no residual blocks.
+  RayBatch(const Model& model, const RayBatchOptions& options);
   ~RayBatch() override;
 
   const RayBatchOptions& options() const { return options_; }
@@ -162,7 +166,8 @@ class RayBatch : public ceres::EvaluationCallback {
                         const RayRobustLosses* robust, std::vector<RayEvaluation>* out,
                         std::vector<double>* ray_cost,
                         std::array<Eigen::VectorXd, 4>* mlp_gradient) const;
-  Model* model_;
+  const Model* model_;
+  Model* mutable_model_ = nullptr;  // null for a batch of a const Model
   RayBatchOptions options_;
   Eigen::Matrix3Xd grid_;
   std::vector<Ray> rays_;

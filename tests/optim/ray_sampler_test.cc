@@ -1,0 +1,95 @@
+// RaySampler (optim/ray_sampler.h): what a minibatch's rays are made of.
+// The solver tests use it indirectly; these hold its contract directly.
+#include "banmo/optim/ray_sampler.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "banmo/model/make_model.h"
+#include "tiny_solver_scene.h"
+
+namespace banmo {
+namespace {
+
+const Eigen::AlignedBox3d kBounds(Eigen::Vector3d::Constant(-1.2), Eigen::Vector3d::Constant(1.2));
+
+TEST(RaySampler, RaysCarryTheirDataAndSortedSamples) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  sampling.flow_gaps = {1, 2};
+  std::mt19937 rng(5);
+  const std::vector<Ray> rays = sampler.Sample(200, 12, sampling, *model, kBounds, &rng);
+  ASSERT_EQ(rays.size(), 200u);
+  int object = 0;
+  for (const Ray& ray : rays) {
+    ASSERT_GE(ray.video, 0);
+    ASSERT_LT(ray.video, static_cast<int>(data.videos.size()));
+    const Video& video = data.videos[ray.video];
+    ASSERT_GE(ray.frame, 0);
+    ASSERT_LT(ray.frame, static_cast<int>(video.frames.size()));
+    EXPECT_EQ(ray.NumSamples(), 12);
+    for (int i = 1; i < ray.NumSamples(); ++i) {
+      EXPECT_GT(ray.samples.depths[i], ray.samples.depths[i - 1]);
+    }
+    for (double d : ray.samples.deltas) EXPECT_GT(d, 0.0);
+    if (ray.has_flow) {
+      EXPECT_NE(ray.partner_frame, ray.frame);
+      EXPECT_LE(std::abs(ray.partner_frame - ray.frame), 2);
+    }
+    if (ray.has_feature) {
+      EXPECT_GE(ray.mask, 0.5);  // features only on the object
+    }
+    object += ray.mask >= 0.5;
+  }
+  // foreground_fraction 0.5 of the rays come from inside the mask, and some
+  // of the uniform ones land there too.
+  EXPECT_GE(object, 100);
+}
+
+TEST(RaySampler, SameSeedSameRays) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  std::mt19937 a(9), b(9);
+  const std::vector<Ray> ra = sampler.Sample(50, 8, sampling, *model, kBounds, &a);
+  const std::vector<Ray> rb = sampler.Sample(50, 8, sampling, *model, kBounds, &b);
+  ASSERT_EQ(ra.size(), rb.size());
+  for (size_t r = 0; r < ra.size(); ++r) {
+    EXPECT_EQ(ra[r].uv, rb[r].uv);
+    EXPECT_EQ(ra[r].samples.depths, rb[r].samples.depths);
+    EXPECT_EQ(ra[r].partner_frame, rb[r].partner_frame);
+  }
+}
+
+// Active sampling draws near the pixels with the largest recorded errors.
+TEST(RaySampler, ActiveRaysRevisitLargeErrors) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  std::mt19937 rng(2);
+  const std::vector<Ray> first = sampler.Sample(64, 8, sampling, *model, kBounds, &rng);
+  std::vector<double> errors(first.size(), 0.0);
+  errors[0] = 100.0;  // one ray with a huge error
+  sampler.RecordErrors(first, errors);
+  ASSERT_FALSE(sampler.error_cache().empty());
+  sampling.active_fraction = 1.0;
+  const std::vector<Ray> active = sampler.Sample(32, 8, sampling, *model, kBounds, &rng);
+  int near = 0;
+  for (const Ray& ray : active) {
+    near += ray.video == first[0].video && ray.frame == first[0].frame &&
+            (ray.uv - first[0].uv).norm() < 4.0;
+  }
+  // Error-proportional: every other cached pixel has error 0.
+  EXPECT_EQ(near, 32) << "active rays away from the only pixel with an error";
+}
+
+}  // namespace
+}  // namespace banmo
