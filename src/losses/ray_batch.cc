@@ -172,6 +172,13 @@ std::vector<RayBlock> RayBatch::TermBlocks(int index, LossTerm term) const {
   return present;
 }
 
+std::vector<const double*> RayBatch::TermBlockValues(int index, LossTerm term) const {
+  const RayParameters p = ModelParameters(rays_[index]);
+  std::vector<const double*> out;
+  for (RayBlock b : TermBlocks(index, term)) out.push_back(p.block[b]);
+  return out;
+}
+
 std::vector<double*> RayBatch::TermParameterBlocks(int index, LossTerm term) const {
   CHECK(mutable_model_ != nullptr) << "a RayBatch of a const Model has no residual blocks";
   const Ray& ray = rays_[index];

@@ -130,7 +130,7 @@ TEST(RenderFrame, EqualsTheFullJetReferenceResidualPlusObservation) {
     auto evaluate = [&](LossTerm term) {
       const std::unique_ptr<ceres::CostFunction> cost =
           MakeReferenceCostFunction(batch, static_cast<int>(i), term);
-      const std::vector<double*> blocks = batch.TermParameterBlocks(static_cast<int>(i), term);
+      const std::vector<const double*> blocks = batch.TermBlockValues(static_cast<int>(i), term);
       ASSERT_TRUE(cost->Evaluate(blocks.data(), value, nullptr));
     };
     evaluate(LossTerm::kRgb);

@@ -117,6 +117,8 @@ class RayBatch : public ceres::EvaluationCallback {
   // the cost function expects, and their ids.
   std::vector<RayBlock> TermBlocks(int index, LossTerm term) const;
   std::vector<double*> TermParameterBlocks(int index, LossTerm term) const;
+  // The same blocks read-only (also for a batch of a const Model).
+  std::vector<const double*> TermBlockValues(int index, LossTerm term) const;
   RayParameters ModelParameters(const Ray& ray) const;
 
   // The cost function of one term of one ray (caller owns it; a
