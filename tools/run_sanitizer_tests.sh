@@ -1,16 +1,30 @@
 #!/usr/bin/env bash
 # Builds banmo-ceres with AddressSanitizer + UndefinedBehaviorSanitizer into
 # build-asan/ (build type Sanitize: -O1 -g, assertions on; no benchmarks) and
-# runs the quick test set under it. Any sanitizer report fails its test.
+# runs the unit tests of the lower modules under it (BANMO_SANITIZE_TEST_DIRS).
+# Any sanitizer report fails its test.
+# Not yet under the sanitizers: losses (its numeric-differentiation cases take
+# about 46 s each under ASan), optim, extract, eval, synth, gltf, visualize and
+# the command-line tests (they need the whole program built with ASan, which
+# with the tests above does not fit CI's time on 2 cores; README, "tests").
 #   bash tools/run_sanitizer_tests.sh          # build + ctest -L quick
 # BANMO_ASAN_BUILD_DIR overrides build-asan/, BANMO_JOBS the build's -j.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${BANMO_ASAN_BUILD_DIR:-$root/build-asan}"
+dirs="${BANMO_SANITIZE_TEST_DIRS:-util;geometry;field;deform;render;model}"
 cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Sanitize \
-  -DBANMO_SANITIZE=address,undefined -DBANMO_WERROR=OFF -DBANMO_BUILD_BENCHMARKS=OFF >/dev/null
+  -DBANMO_SANITIZE=address,undefined -DBANMO_WERROR=OFF -DBANMO_BUILD_BENCHMARKS=OFF \
+  -DBANMO_ONLY_TEST_DIRS="$dirs" >/dev/null
+# Only the test programs of those folders (and the libraries they link).
+targets=()
+for d in ${dirs//;/ }; do
+  for t in $(sed -n 's/^banmo_add_test(\([a-z_0-9]*\).*/\1/p' "$root/tests/$d/CMakeLists.txt"); do
+    targets+=(--target "$t")
+  done
+done
 start=$(date +%s)
-cmake --build "$build" -j "${BANMO_JOBS:-$(nproc)}"
+cmake --build "$build" -j "${BANMO_JOBS:-$(nproc)}" "${targets[@]}"
 echo "[time] sanitizer build $(($(date +%s) - start)) s"
 
 # Stop at the first report with a stack trace; leaks are checked (LeakSanitizer)
