@@ -594,40 +594,42 @@ void RayPipeline::ReverseRender(RayWork& w) {
   }
 }
 
-void RayPipeline::Cycle3dGradient(RayWork& w) {
-  const Ray& ray = w.ray;
+// Sample i's 3D-cycle residual (Eq. 19) into the ray's rows, the forward
+// warp's Jacobian *qj, and the residual's Jacobian *E wrt [q (the
+// forward-warped point), root_delta, intrinsics].
+void RayPipeline::Cycle3dSample(RayWork& w, int i, WarpJacobian* qj, Cycle3dJacobian* E) const {
   const RayParameters& p = w.p;
+  const RayScratch& s = w.s;
+  using J = JetN<kPointPoseIntrinsics>;
+  Eigen::Vector3d q;
+  WarpWithJacobian(WarpDirection::kForward, B, w.bones, p.block[kBlockBonesT],
+                   s.x_star.col(i).data(), q.data(), qj, fw_logits(s.fw_offset + i));
+  J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
+  SeedJets(q.data(), 3, 0, qj_jet);
+  SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
+  SeedJets(w.intr, kIntrinsicsSize, 3 + kPoseSize, k);
+  Cycle3dResidual(Cycle3dLoss((*w.tau)[i], weights[LossTerm::kCycle3d]), pose, p.root_init, k,
+                  w.ray.uv.data(), w.ray.samples.depths[i], qj_jet, res);
+  for (int c = 0; c < 3; ++c) {
+    w.ev.residuals[w.R + 3 * i + c] = res[c].a;
+    E->row(c) = res[c].v.transpose();
+  }
+}
+
+void RayPipeline::Cycle3dGradient(RayWork& w) {
   RayScratch& s = w.s;
   RayEvaluation& ev = w.ev;
   const int r = w.r;
   const int n = w.n;
-  const double* bones = w.bones;
-  const double* intr = w.intr;
   const int R = w.R;
   const bool cycle3d = w.cycle3d;
-  const std::vector<double>& tau = *w.tau;
   auto& jac = w.ev.jacobians;
   // ---- 3D cycle, gradient mode: all residuals first (rho' needs the
   // whole term's |r|^2), then one cotangent row c_i^T E_i per sample. ----
   if (cycle3d && gradient) {
-    using J = JetN<kPointPoseIntrinsics>;
     std::vector<WarpJacobian> qjs(n);
-    std::vector<Eigen::Matrix<double, 3, kPointPoseIntrinsics>> Es(n);
-    for (int i = 0; i < n; ++i) {
-      Eigen::Vector3d q;
-      WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT],
-                       s.x_star.col(i).data(), q.data(), &qjs[i], fw_logits(s.fw_offset + i));
-      J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
-      SeedJets(q.data(), 3, 0, qj_jet);
-      SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
-      SeedJets(intr, kIntrinsicsSize, 3 + kPoseSize, k);
-      Cycle3dResidual(Cycle3dLoss(tau[i], weights[LossTerm::kCycle3d]), pose, p.root_init, k,
-                      ray.uv.data(), ray.samples.depths[i], qj_jet, res);
-      for (int c = 0; c < 3; ++c) {
-        ev.residuals[R + 3 * i + c] = res[c].a;
-        Es[i].row(c) = res[c].v.transpose();
-      }
-    }
+    std::vector<Cycle3dJacobian> Es(n);
+    for (int i = 0; i < n; ++i) Cycle3dSample(w, i, &qjs[i], &Es[i]);
     const Eigen::Map<const Eigen::VectorXd> r_t(ev.residuals.data() + R, 3 * n);
     const double sq = r_t.squaredNorm();
     double rho[3] = {sq, 1.0, 0.0};
@@ -663,37 +665,18 @@ void RayPipeline::Cycle3dGradient(RayWork& w) {
 }
 
 void RayPipeline::Cycle3dRows(RayWork& w) {
-  const Ray& ray = w.ray;
-  const RayParameters& p = w.p;
   RayScratch& s = w.s;
-  RayEvaluation& ev = w.ev;
   const int n = w.n;
-  const double* bones = w.bones;
-  const double* intr = w.intr;
   const int R = w.R;
   const bool cycle3d = w.cycle3d;
-  const std::vector<double>& tau = *w.tau;
   auto& jac = w.ev.jacobians;
   // ---- 3D cycle rows: 3 per sample, small blocks only. ----
   if (cycle3d && !gradient) {
-    using J = JetN<kPointPoseIntrinsics>;
     for (int i = 0; i < n; ++i) {
       const int row0 = R + 3 * i;
-      Eigen::Vector3d q;
       WarpJacobian qj;
-      WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT],
-                       s.x_star.col(i).data(), q.data(), &qj, fw_logits(s.fw_offset + i));
-      J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
-      SeedJets(q.data(), 3, 0, qj_jet);
-      SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);
-      SeedJets(intr, kIntrinsicsSize, 3 + kPoseSize, k);
-      Cycle3dResidual(Cycle3dLoss(tau[i], weights[LossTerm::kCycle3d]), pose, p.root_init, k,
-                      ray.uv.data(), ray.samples.depths[i], qj_jet, res);
-      Eigen::Matrix<double, 3, kPointPoseIntrinsics> E;
-      for (int c = 0; c < 3; ++c) {
-        ev.residuals[row0 + c] = res[c].a;
-        E.row(c) = res[c].v.transpose();
-      }
+      Cycle3dJacobian E;
+      Cycle3dSample(w, i, &qj, &E);
       const Eigen::Matrix3d a_q = E.leftCols<3>();
       AddProduct(&jac[kBlockRoot], row0, E.middleCols<kPoseSize>(3),
                  Eigen::Matrix<double, kPoseSize, kPoseSize>::Identity());

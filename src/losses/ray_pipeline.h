@@ -127,6 +127,7 @@ void GatherDeltaAdjoints(const std::vector<RayScratch>& scratch, const std::vect
 
 using RayJacobians = std::array<RowMajorMatrix, kNumRayBlocks>;
 using ProjectionJacobian = Eigen::Matrix<double, 2, kPointPoseIntrinsics>;
+using Cycle3dJacobian = Eigen::Matrix<double, 3, kPointPoseIntrinsics>;
 
 class RayPipeline {
  public:
@@ -173,6 +174,7 @@ class RayPipeline {
   // False when no Jacobians are wanted (the ray is done).
   bool RenderingWeights(RayWork& w);
   void ReverseRender(RayWork& w);
+  void Cycle3dSample(RayWork& w, int i, WarpJacobian* qj, Cycle3dJacobian* E) const;
   void Cycle3dGradient(RayWork& w);
   void Cycle3dRows(RayWork& w);
   void MlpGradient();
