@@ -1,17 +1,10 @@
 #include "banmo/optim/solver.h"
 
-#include <ceres/loss_function.h>
-#include <ceres/problem.h>
-#include <ceres/solver.h>
-
 #include <atomic>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
-#include <cstring>
 #include <map>
-#include <set>
-#include <sstream>
 
 #include "banmo/deform/bone_centres.h"
 #include "banmo/extract/extract.h"
