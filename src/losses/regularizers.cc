@@ -184,8 +184,8 @@ struct RootSmoothness {
       ia[k] = T(init_a[k]);
       ib[k] = T(init_b[k]);
     }
-    PoseCompose(delta_a, ia, pa);
-    PoseCompose(delta_b, ib, pb);
+    PoseCompose(ia, delta_a, pa);  // G^t = G0^t dG^t, as RootPose
+    PoseCompose(ib, delta_b, pb);
     return loss(pa, pb, residual);
   }
   const Pose init_a, init_b;

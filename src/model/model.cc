@@ -137,7 +137,7 @@ bool Model::DeltaSkinningIsNonZero() const {
 Pose Model::RootPose(int v, int t) const {
   const FrameParameters& f = frame(v, t);
   Pose out;
-  PoseCompose(f.root_delta.data(), f.root_init.data(), out.data());
+  PoseCompose(f.root_init.data(), f.root_delta.data(), out.data());
   return out;
 }
 

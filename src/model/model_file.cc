@@ -339,6 +339,7 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
         << (s.importance_depth ? "true" : "false");
     out << YAML::EndMap;
   }
+  out << YAML::Key << "root_correction" << YAML::Value << kRootCorrectionObjectSide;
   out << YAML::Key << "videos" << YAML::Value << YAML::BeginSeq;
   for (int v = 0; v < model.num_videos(); ++v) {
     const VideoParameters& vp = model.video(v);
@@ -365,6 +366,19 @@ std::string ResolveModelFolder(const std::string& dir) {
 }
 
 namespace {
+
+// Re-expresses camera-side corrections (G = dG_cam G0) on the object side
+// (G = G0 dG): dG = G0^-1 dG_cam G0, the same G up to rounding.
+void ObjectSideRootCorrections(Model* model) {
+  for (int v = 0; v < model->num_videos(); ++v) {
+    for (FrameParameters& f : model->video(v).frames) {
+      Pose init_inverse, tmp;
+      PoseInverse(f.root_init.data(), init_inverse.data());
+      PoseCompose(f.root_delta.data(), f.root_init.data(), tmp.data());
+      PoseCompose(init_inverse.data(), tmp.data(), f.root_delta.data());
+    }
+  }
+}
 
 std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   const std::string yaml_path = dir + "/model.yaml";
@@ -454,6 +468,12 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   }
   uint64_t expected_count = 0;
   ReadRequired(yaml_path, root, "parameters", &expected_count);
+  std::string root_correction = "camera";  // files written before the key existed
+  ReadOptional(yaml_path, "", root, "root_correction", &root_correction);
+  if (root_correction != kRootCorrectionObjectSide && root_correction != "camera") {
+    ThrowInputError(yaml_path, ": key 'root_correction': expected '", kRootCorrectionObjectSide,
+                    "' or 'camera', got '", root_correction, "'", kWhatToDo);
+  }
 
   std::vector<int> frames;
   std::vector<PinholeCamera> cameras;
@@ -514,6 +534,7 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
     std::memcpy(data, p, sizeof(double) * size);
     p += sizeof(double) * size;
   });
+  if (root_correction != kRootCorrectionObjectSide) ObjectSideRootCorrections(model.get());
   return model;
 }
 

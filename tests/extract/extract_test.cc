@@ -139,8 +139,8 @@ TEST(ArticulateMesh, SharedBoneTransformIsARigidMotion) {
   }
   f.root_delta = root_delta;
   f.root_init = root_init;
-  const Eigen::Isometry3d expected = IsometryFromPose(root_delta.data()) *
-                                     IsometryFromPose(root_init.data()) *
+  const Eigen::Isometry3d expected = IsometryFromPose(root_init.data()) *
+                                     IsometryFromPose(root_delta.data()) *
                                      IsometryFromPose(bone.data());
   const TriangleMesh posed = ArticulateMesh(*model, canonical, 0, 2);
   // The blend of B equal points is that point up to rounding (1e-15 relative).

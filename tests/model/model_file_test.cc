@@ -84,6 +84,37 @@ std::string LoadError(const fs::path& dir) {
   return "";
 }
 
+// `model` holds the doubles of `params` (a params.bin whose root corrections
+// were camera-side, G = dG_cam G0): every block bitwise, except root_delta,
+// whose root pose G0 dG equals dG_cam G0 to 1e-14 (a few roundings of unit
+// quaternions and O(1) translations).
+void ExpectParamsWithCameraSideCorrections(const Model& model, const std::string& params) {
+  const std::vector<double> values = AllParameters(model);
+  ASSERT_EQ(params.size(), 16 + sizeof(double) * values.size());
+  std::vector<double> raw(values.size());
+  std::memcpy(raw.data(), params.data() + 16, sizeof(double) * raw.size());
+  size_t at = 0;
+  int corrections = 0;
+  model.ForEachBlock([&](const std::string& name, const double* data, int size) {
+    const double* old = raw.data() + at;
+    at += size;
+    if (name.find("/root_delta") == std::string::npos) {
+      EXPECT_EQ(std::vector<double>(data, data + size), std::vector<double>(old, old + size))
+          << name;
+      return;
+    }
+    const double* init = data + kPoseSize;  // root_init follows root_delta
+    Pose camera_side, object_side;
+    PoseCompose(old, init, camera_side.data());
+    PoseCompose(init, data, object_side.data());
+    EXPECT_LT((camera_side - object_side).cwiseAbs().maxCoeff(), 1e-14) << name;
+    ++corrections;
+  });
+  int frames = 0;
+  for (int v = 0; v < model.num_videos(); ++v) frames += model.video(v).frames.size();
+  EXPECT_EQ(corrections, frames) << "root_delta blocks";
+}
+
 void ExpectSameModel(const Model& a, const Model& b) {
   EXPECT_EQ(AllParameters(a), AllParameters(b));
   EXPECT_EQ(a.scene_scale(), b.scene_scale());
@@ -199,13 +230,9 @@ TEST(ModelFile, LoadsACheckpointOfThePreviousFormat) {
   EXPECT_EQ(model->training_sampling()->samples_per_ray, 8);
   EXPECT_EQ(model->training_sampling()->near_far_margin, 0.2);
   EXPECT_FALSE(model->training_sampling()->importance_depth);
-  // The parameters are params.bin's doubles in ForEachBlock order.
-  const std::string params = ReadText(dir + "/params.bin");
-  const std::vector<double> values = AllParameters(*model);
-  ASSERT_EQ(params.size(), 16 + sizeof(double) * values.size());
-  std::vector<double> raw(values.size());
-  std::memcpy(raw.data(), params.data() + 16, sizeof(double) * raw.size());
-  EXPECT_EQ(values, raw);
+  // The parameters are params.bin's doubles in ForEachBlock order, the root
+  // corrections re-expressed on the object side.
+  ExpectParamsWithCameraSideCorrections(*model, ReadText(dir + "/params.bin"));
 
   // Written again, it reads back the same in the current format.
   const fs::path copy = FreshDir("banmo_model_file_from_v1");
@@ -227,6 +254,35 @@ void ReplaceOnce(std::string* text, const std::string& from, const std::string& 
   const size_t at = text->find(from);
   ASSERT_NE(at, std::string::npos) << from;
   text->replace(at, from.size(), to);
+}
+
+// A model-2 folder written before `root_correction` existed stored
+// camera-side corrections; it loads with the same root poses.
+TEST(ModelFile, FolderWithoutRootCorrectionKeyLoadsTheSameRootPoses) {
+  const std::unique_ptr<Model> model = SmallModel(SmallOptions());
+  std::mt19937 rng(3);
+  std::normal_distribution<double> normal;
+  for (int v = 0; v < model->num_videos(); ++v) {
+    for (FrameParameters& f : model->video(v).frames) {
+      f.root_init = PoseFromAngleAxis(Eigen::Vector3d(normal(rng), normal(rng), normal(rng)),
+                                      Eigen::Vector3d(normal(rng), normal(rng), 3.0));
+      f.root_delta = PoseFromAngleAxis(0.5 * Eigen::Vector3d(normal(rng), normal(rng), 0.0),
+                                       Eigen::Vector3d(normal(rng), 0.0, normal(rng)));
+    }
+  }
+  const fs::path dir = FreshDir("banmo_model_file_camera_side");
+  WriteModelFiles(dir.string(), *model);
+  std::string yaml = ReadText(dir / "model.yaml");
+  ReplaceOnce(&yaml, "root_correction: object\n", "");
+  std::ofstream(dir / "model.yaml") << yaml;
+  ExpectParamsWithCameraSideCorrections(*LoadModel(dir.string()), ReadText(dir / "params.bin"));
+
+  ReplaceOnce(&yaml, "videos:", "root_correction: sideways\nvideos:");
+  std::ofstream(dir / "model.yaml") << yaml;
+  const std::string error = LoadError(dir);
+  EXPECT_NE(error.find("model.yaml"), std::string::npos) << error;
+  EXPECT_NE(error.find("root_correction"), std::string::npos) << error;
+  EXPECT_NE(error.find("sideways"), std::string::npos) << error;
 }
 
 TEST(ModelFile, PreviousFormatWithoutSceneScaleLoadsWithOne) {

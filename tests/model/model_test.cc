@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <set>
 #include <string>
 #include <vector>
@@ -107,14 +108,19 @@ TEST(Model, ForEachBlockVisitsEveryBlockOnceInTheDocumentedOrder) {
   EXPECT_EQ(const_total, total);
 }
 
-TEST(Model, RootPoseComposesDeltaAndInitialPose) {
+TEST(Model, RootPoseComposesInitialPoseAndObjectSideDelta) {
   Model model = TinyModel(TinyOptions());
   FrameParameters& f = model.frame(0, 1);
-  f.root_init[kPoseT + 0] = 1.0;   // G0: translation (1, 0, 0)
-  f.root_delta[kPoseT + 2] = 2.0;  // dG: translation (0, 0, 2)
+  // G0: 90 deg about z, translation (1, 0, 0); dG: translation (0, 2, 0) in
+  // the root frame, which G0 turns into (-2, 0, 0) in the camera.
+  f.root_init = PoseFromAngleAxis(Eigen::Vector3d(0, 0, M_PI / 2), Eigen::Vector3d(1, 0, 0));
+  f.root_delta = PoseFromAngleAxis(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 2, 0));
   const Pose g = model.RootPose(0, 1);
-  EXPECT_EQ(g[kPoseT + 0], 1.0);
-  EXPECT_EQ(g[kPoseT + 2], 2.0);
+  // G = G0 dG: t = t0 + R0 t_delta, R = R0 R_delta (1e-15: one rotation).
+  EXPECT_NEAR(g[kPoseT + 0], -1.0, 1e-15);
+  EXPECT_NEAR(g[kPoseT + 1], 0.0, 1e-15);
+  EXPECT_NEAR(g[kPoseT + 2], 0.0, 1e-15);
+  for (int k = 0; k < 4; ++k) EXPECT_EQ(g[kPoseQw + k], f.root_init[kPoseQw + k]);
 }
 
 TEST(Model, SetBonesKeepsTheFirstTransformsAndAddsIdentities) {

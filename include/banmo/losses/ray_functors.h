@@ -5,7 +5,10 @@
 //
 // Frames: x_in_cam = camera coordinates of frame t; x_in_root = the object's
 // root frame at time t; canonical = rest space. camera_from_root G^t =
-// dG^t * G0^t (Eq. 20), dG^t the root_delta parameter block, G0^t data.
+// G0^t * dG^t, G0^t data, dG^t the root_delta parameter block: the paper's
+// Eq. 20 with the correction on the object side (docs/solver.md, "Root
+// poses"), so that turning the object about its own centre is one small
+// rotation of dG^t, not a rotation plus a translation of about 2 d sin(phi/2).
 #pragma once
 
 #include <cmath>
@@ -23,12 +26,12 @@
 
 namespace banmo {
 
-// G^t = dG^t * G0^t.
+// G^t = G0^t * dG^t.
 template <typename T>
 inline void RootPose(const T* root_delta, const double* root_init, T* camera_from_root) {
   T init[kPoseSize];
   for (int k = 0; k < kPoseSize; ++k) init[k] = T(root_init[k]);
-  PoseCompose(root_delta, init, camera_from_root);
+  PoseCompose(init, root_delta, camera_from_root);
 }
 
 // Sample point of a ray at camera depth z: x_in_cam = z K^{-1} [u v 1]^T.

@@ -10,7 +10,8 @@
 //                             only when options.delta_skinning.enabled)
 //   appearance[v] (A)         per-video appearance code omega_e (Eq. 1)
 //   per frame (video v, frame t):
-//     root_delta (7)          dG^t, camera_from_root = dG^t * G0^t (Eq. 20)
+//     root_delta (7)          dG^t, camera_from_root = G0^t * dG^t (Eq. 20,
+//                             correction on the object side)
 //     bones_t (kPoseSize B)   J_b^t posed_from_rest per bone (Eq. 8-10)
 //     pose_code (P)           omega^t of delta skinning (when enabled)
 //     intrinsics (4)          [fx, fy, cx, cy] of the video's camera (held

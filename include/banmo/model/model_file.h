@@ -12,7 +12,8 @@
 //                    importance_depth} when recorded (Model::
 //                    canonical_bounds(), Model::training_sampling()); videos:
 //                    per video frames, width, height, intrinsics
-//                    [fx, fy, cx, cy].
+//                    [fx, fy, cx, cy]; root_correction: object (G^t =
+//                    G0^t dG^t, Model::RootPose).
 //   DIR/params.bin   "BANMOPB1", uint64 count, count little-endian doubles in
 //                    Model::ForEachBlock order, in model units (root
 //                    translations = dataset units / s).
@@ -23,6 +24,10 @@
 // scene scale 1 when absent) load the same model; their canonical bounds
 // were not recorded, and their training sampling is the last stage of that
 // config.
+//
+// Folders without `root_correction` (written before the root correction
+// moved to the object side) stored dG_cam with G^t = dG_cam G0^t; they load
+// as dG^t = (G0^t)^-1 dG_cam G0^t, the same root poses.
 #pragma once
 
 #include <memory>
@@ -36,6 +41,8 @@ namespace banmo {
 inline constexpr char kModelFileFormat[] = "banmo-model-2";
 // The format of checkpoints written before the model file existed.
 inline constexpr char kLegacyCheckpointFormat[] = "banmo-checkpoint-1";
+// The value of model.yaml's root_correction written by WriteModelFiles.
+inline constexpr char kRootCorrectionObjectSide[] = "object";
 
 // Writes DIR/params.bin and DIR/model.yaml (each atomically) into the
 // existing folder DIR. Throws InputError if a file cannot be written.
