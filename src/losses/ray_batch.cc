@@ -291,9 +291,10 @@ void RayBatch::EvaluateRaysImpl(const std::vector<const Ray*>& rays,
                                 const RayRobustLosses* robust, std::vector<RayEvaluation>* out,
                                 std::vector<double>* ray_cost,
                                 std::array<Eigen::VectorXd, 4>* mlp_gradient) const {
-  RayPipeline(*model_, options_, grid_, rays, params, full_jacobians, robust, out, ray_cost,
-              mlp_gradient)
-      .Run();
+  RayPipeline pipeline(*model_, options_, grid_, rays, params, full_jacobians, robust, out,
+                       ray_cost, mlp_gradient);
+  pipeline.set_field_jacobians(field_jacobians_ || robust != nullptr);
+  pipeline.Run();
 }
 
 }  // namespace banmo
@@ -354,6 +355,9 @@ class RayTermCostFunction final : public ceres::CostFunction {
     for (size_t i = 0; i < blocks_.size(); ++i) {
       if (jacobians[i] == nullptr) continue;
       const RowMajorMatrix& jac = ev->jacobians[blocks_[i]];
+      CHECK_EQ(jac.cols(), sizes[i]) << "no Jacobian of block " << RayBlockName(blocks_[i])
+                                     << ": the batch skips field Jacobians "
+                                        "(SetFieldJacobians), hold the MLP blocks constant";
       Eigen::Map<RowMajorMatrix>(jacobians[i], rows, jac.cols()) = jac.middleRows(row, rows);
     }
     return true;

@@ -96,6 +96,7 @@ void RayPipeline::Run() {
     MlpGradient();
     return;
   }
+  if (!field_jacobians) return;
   MlpJacobians();
   DeltaCycle3dJacobians();
 }
@@ -329,7 +330,8 @@ void RayPipeline::InitEvaluation(RayWork& w) {
     ev.has_jacobians = !gradient;
     for (int b = 0; b < kNumRayBlocks; ++b) {
       const bool mlp = b == kBlockSdf || b == kBlockColor || b == kBlockEmbedding;
-      ev.jacobians[b].setZero(mlp ? Rc : (gradient ? 1 : total_rows), sizes[b]);
+      const bool skipped = !field_jacobians && (mlp || b == kBlockDeltaSkin);
+      ev.jacobians[b].setZero(mlp ? Rc : (gradient ? 1 : total_rows), skipped ? 0 : sizes[b]);
     }
   }
 }

@@ -135,6 +135,9 @@ class RayPipeline {
               const std::vector<const Ray*>& rays, const std::vector<RayParameters>& params,
               bool full_jacobians, const RayRobustLosses* robust, std::vector<RayEvaluation>* out,
               std::vector<double>* ray_cost, std::array<Eigen::VectorXd, 4>* mlp_gradient);
+  // Off: full Jacobians without the MLP-weight blocks (sdf, color,
+  // embedding, delta_skinning have 0 columns), e.g. for pose-only solves.
+  void set_field_jacobians(bool on) { field_jacobians = on; }
   void Run();
 
  private:
@@ -206,6 +209,7 @@ class RayPipeline {
   std::array<Eigen::VectorXd, 4>* mlp_gradient;
   const bool gradient;
   const bool jacobians;
+  bool field_jacobians = true;
   const int num_rays;
   const int B;
   const int A;

@@ -223,6 +223,33 @@ TEST(DeltaSkinning, OffEqualsOnWhileTheOutputLayerIsZero) {
   for (size_t k = 0; k < on.size(); ++k) EXPECT_EQ(on[k], off[k]) << k;
 }
 
+// Without field Jacobians (the pose solves) the residuals and every other
+// block's Jacobian are the same bits; the MLP-weight blocks have none.
+TEST(RayBatch, FieldJacobiansOffKeepsEveryOtherBlock) {
+  for (bool delta : {false, true}) {
+    const TestSceneOptions options = delta ? DeltaSceneOptions() : TestSceneOptions();
+    TestScene with = MakeTestScene(options);
+    TestScene without = MakeTestScene(options);
+    with.batch->EvaluateAll(true);
+    without.batch->SetFieldJacobians(false);
+    without.batch->EvaluateAll(true);
+    for (int r = 0; r < with.batch->num_rays(); ++r) {
+      const RayEvaluation& a = with.batch->evaluation(r);
+      const RayEvaluation& b = without.batch->evaluation(r);
+      EXPECT_EQ(a.residuals, b.residuals);
+      for (int k = 0; k < kNumRayBlocks; ++k) {
+        const bool field =
+            k == kBlockSdf || k == kBlockColor || k == kBlockEmbedding || k == kBlockDeltaSkin;
+        if (field) {
+          EXPECT_EQ(b.jacobians[k].cols(), 0) << RayBlockName(static_cast<RayBlock>(k));
+        } else {
+          EXPECT_TRUE(a.jacobians[k] == b.jacobians[k]) << RayBlockName(static_cast<RayBlock>(k));
+        }
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(AllTerms, DeltaSkinningJacobian, ::testing::ValuesIn(RayTerms()),
                          [](const ::testing::TestParamInfo<LossTerm>& info) {
                            return std::string(LossTermName(info.param));

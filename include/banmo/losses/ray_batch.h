@@ -101,6 +101,15 @@ class RayBatch : public ceres::EvaluationCallback {
   void SetDeltaSkinning(bool on);
   bool delta_skinning() const { return delta_skinning_; }
 
+  // Whether Jacobian evaluations include the MLP-weight blocks (sdf, color,
+  // embedding, delta_skinning; default on). Off skips their reverse passes,
+  // most of an evaluation's cost, for problems that hold them constant (the
+  // per-frame pose solves): a cost function asked for one of them fails.
+  void SetFieldJacobians(bool on) {
+    field_jacobians_ = on;
+    cache_valid_ = false;
+  }
+
   // Canonical points X of the soft-argmax (Eq. 15's V*), 3 x M.
   void SetMatchGrid(const Eigen::Matrix3Xd& grid);
   const Eigen::Matrix3Xd& match_grid() const { return grid_; }
@@ -177,6 +186,7 @@ class RayBatch : public ceres::EvaluationCallback {
   bool cache_valid_ = false;
   bool cache_has_jacobians_ = false;
   bool delta_skinning_ = false;
+  bool field_jacobians_ = true;
 };
 
 }  // namespace banmo
