@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "banmo/io/dataset.h"
@@ -10,6 +11,7 @@
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/load_options.h"
+#include "banmo/optim/root_pose_error.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
@@ -79,6 +81,12 @@ int RunSolve(int argc, char** argv) {
   const Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
   std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
               dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
+  if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(dataset)) {
+    std::printf(
+        "banmo solve: initial root poses: rotation error %.2f deg mean, %.2f deg p90 against the "
+        "ground truth\n",
+        e->mean_deg, e->p90_deg);
+  }
   // Inputs are valid: only now is anything written.
   MakeDirectories(out_dir);
   WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));
@@ -132,6 +140,13 @@ int RunSolve(int argc, char** argv) {
     if (!s.finite) ThrowInputError("stage ", s.name, " produced non-finite parameters");
   }
   std::printf("banmo solve: %zu stage(s) in %.1f s\n", result.stages.size(), timer.Seconds());
+  if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(solver.model(), dataset)) {
+    WriteFileAtomic(out_dir + "/root_pose_errors.csv", RootPoseErrorsCsv(*e));
+    std::printf(
+        "root poses: rotation error %.2f deg mean, %.2f deg p90, %.2f deg max against the "
+        "ground truth (after a global alignment of %.2f deg; %s/root_pose_errors.csv)\n",
+        e->mean_deg, e->p90_deg, e->max_deg, e->alignment_deg, out_dir.c_str());
+  }
   if (!no_extract) {
     WriteSolveOutputs(solver.model(), dataset, out_dir, resolution, !no_eval);
   }

@@ -106,6 +106,16 @@ void VisitFields(V& v, ScheduleConfig& o) {
 }
 
 template <class V>
+void VisitFields(V& v, PoseSolveConfig& o) {
+  v("at", o.at);
+  v("rays", o.rays);
+  v("iterations", o.iterations);
+  v("search_ratio", o.search_ratio);
+  v("search_rotations", o.search_rotations);
+  v("search_keep", o.search_keep);
+}
+
+template <class V>
 void VisitFields(V& v, StageConfig& o) {
   v("name", o.name);
   v("iterations", o.iterations);
@@ -118,6 +128,7 @@ void VisitFields(V& v, StageConfig& o) {
   v("lm", o.lm);
   v("sampling", o.sampling);
   v("schedule", o.schedule);
+  v("pose_solve", o.pose_solve);
   v("checkpoint_every", o.checkpoint_every);
   v("log_every", o.log_every);
 }
@@ -596,6 +607,25 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
+
+  const std::string q = p + ".pose_solve";
+  for (size_t i = 0; i < s.pose_solve.at.size(); ++i) {
+    const std::string key = q + ".at[" + std::to_string(i) + "]";
+    c.Fraction(key, s.pose_solve.at[i]);
+    if (i > 0 && !(s.pose_solve.at[i] > s.pose_solve.at[i - 1])) {
+      c.Fail(key, "expected increasing fractions, got ", s.pose_solve.at[i], " after ",
+             s.pose_solve.at[i - 1]);
+    }
+  }
+  c.Positive(q + ".rays", s.pose_solve.rays);
+  c.Positive(q + ".iterations", s.pose_solve.iterations);
+  c.NonNegative(q + ".search_ratio", s.pose_solve.search_ratio);
+  c.Positive(q + ".search_rotations", s.pose_solve.search_rotations);
+  c.Positive(q + ".search_keep", s.pose_solve.search_keep);
+  if (s.pose_solve.search_keep > s.pose_solve.search_rotations) {
+    c.Fail(q + ".search_keep", "expected <= pose_solve.search_rotations (",
+           s.pose_solve.search_rotations, "), got ", s.pose_solve.search_keep);
+  }
 
   c.NonNegative(p + ".checkpoint_every", s.checkpoint_every);
   c.NonNegative(p + ".log_every", s.log_every);

@@ -110,21 +110,44 @@ std::vector<Ray> RaySampler::Sample(int count, int samples_per_ray, const Sampli
   std::uniform_int_distribution<int> pick_frame(0, static_cast<int>(frames_.size()) - 1);
   while (static_cast<int>(rays.size()) < count) {
     const FrameRef fr = frames_[pick_frame(*rng)];
-    const Frame& f = dataset_.videos[fr.video].frames[fr.frame];
-    const std::vector<int>& pixels = object_pixels_[fr.video][fr.frame];
-    int x, y;
-    if (!pixels.empty() && unit(*rng) < sampling.foreground_fraction) {
-      const int p = pixels[std::uniform_int_distribution<int>(0, pixels.size() - 1)(*rng)];
-      x = p % f.mask.cols;
-      y = p / f.mask.cols;
-    } else {
-      x = std::uniform_int_distribution<int>(0, f.mask.cols - 1)(*rng);
-      y = std::uniform_int_distribution<int>(0, f.mask.rows - 1)(*rng);
-    }
-    rays.push_back(
-        MakeRay(fr.video, fr.frame, x, y, samples_per_ray, sampling, model, bounds, rng));
+    rays.push_back(RandomRay(fr.video, fr.frame, samples_per_ray, sampling, model, bounds, rng));
   }
   return rays;
+}
+
+std::vector<Ray> RaySampler::SampleFrame(int video, int frame, int count, int samples_per_ray,
+                                         const SamplingConfig& sampling, const Model& model,
+                                         const Eigen::AlignedBox3d& bounds,
+                                         std::mt19937* rng) const {
+  CHECK(video >= 0 && video < static_cast<int>(dataset_.videos.size()) && frame >= 0 &&
+        frame < static_cast<int>(dataset_.videos[video].frames.size()))
+      << "no frame " << frame << " in video " << video;
+  std::vector<Ray> rays;
+  rays.reserve(count);
+  for (int i = 0; i < count; ++i) {
+    rays.push_back(RandomRay(video, frame, samples_per_ray, sampling, model, bounds, rng));
+  }
+  return rays;
+}
+
+// A ray of frame (v, t): inside the mask with probability
+// sampling.foreground_fraction, else uniform over the image.
+Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfig& sampling,
+                          const Model& model, const Eigen::AlignedBox3d& bounds,
+                          std::mt19937* rng) const {
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Frame& f = dataset_.videos[v].frames[t];
+  const std::vector<int>& pixels = object_pixels_[v][t];
+  int x, y;
+  if (!pixels.empty() && unit(*rng) < sampling.foreground_fraction) {
+    const int p = pixels[std::uniform_int_distribution<int>(0, pixels.size() - 1)(*rng)];
+    x = p % f.mask.cols;
+    y = p / f.mask.cols;
+  } else {
+    x = std::uniform_int_distribution<int>(0, f.mask.cols - 1)(*rng);
+    y = std::uniform_int_distribution<int>(0, f.mask.rows - 1)(*rng);
+  }
+  return MakeRay(v, t, x, y, samples_per_ray, sampling, model, bounds, rng);
 }
 
 void RaySampler::RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors) {

@@ -5,6 +5,7 @@
 #include <csignal>
 #include <cstdio>
 #include <map>
+#include <optional>
 
 #include "banmo/deform/bone_centres.h"
 #include "banmo/extract/extract.h"
@@ -13,7 +14,9 @@
 #include "banmo/losses/regularizers.h"
 #include "banmo/optim/auto_size.h"
 #include "banmo/optim/checkpoint.h"
+#include "banmo/optim/pose_solve.h"
 #include "banmo/optim/ray_sampler.h"
+#include "banmo/optim/root_pose_error.h"
 #include "banmo/render/ray_samples.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
@@ -287,7 +290,11 @@ void Solver::ReportBatch(int it, const StageRun& run, const TermLosses& losses,
     std::printf(" %s=%.4g", name.c_str(), value);
     total += value;
   }
-  std::printf(" | total=%.4g | %.0f rays/s | ETA %.0fs\n", total, rate, eta);
+  std::printf(" | total=%.4g", total);
+  if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(*model_, dataset_)) {
+    std::printf(" | root rot err %.1f/%.1f deg", e->mean_deg, e->p90_deg);
+  }
+  std::printf(" | %.0f rays/s | ETA %.0fs\n", rate, eta);
   std::fflush(stdout);
 }
 
@@ -343,6 +350,48 @@ void Solver::RunSchedules(int it, double fraction, const StageRun& run, StagePro
     }
     Grow(it, run, sp, c, result);
   }
+  for (double at : stage.pose_solve.at) {
+    if (it == static_cast<int>(std::lround(at * stage.iterations)))
+      SolvePoses(it, run, sp, c, result);
+  }
+}
+
+void Solver::SolvePoses(int it, const StageRun& run, StageProblem* sp, RunContext* c,
+                        SolveResult* result) {
+  const StageConfig& stage = *run.stage;
+  FramePoseContext context;
+  context.batch = sp->batch().options();
+  context.batch.weights[LossTerm::kCycle3d] = 0.0;  // no view of the pose
+  context.robust = sp->ray_robust();
+  context.delta_skinning = sp->batch().delta_skinning();
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  context.match_grid.resize(3, stage.sampling.match_grid_points);
+  for (int i = 0; i < context.match_grid.cols(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      context.match_grid(k, i) = bounds_.min()[k] + unit(c->state->rng) * bounds_.sizes()[k];
+    }
+  }
+  PoseSolveReport report =
+      SolveAllFramePoses(model_.get(), c->sampler, stage, bounds_, context, &c->state->rng);
+  report.stage = run.index;
+  report.iteration = it;
+  // The root corrections jumped: their Adam moments are stale.
+  for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
+    m = m->first.find("/root_delta") != std::string::npos ? c->state->adam.erase(m) : std::next(m);
+  }
+  sp->batch().Invalidate();
+  if (!c->options.quiet) {
+    std::string errors;
+    if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(*model_, dataset_)) {
+      char text[96];
+      std::snprintf(text, sizeof(text), "; root rotation error now %.1f deg mean, %.1f deg p90",
+                    e->mean_deg, e->p90_deg);
+      errors = text;
+    }
+    std::printf("[%s] %s%s\n", stage.name.c_str(), report.Describe().c_str(), errors.c_str());
+    std::fflush(stdout);
+  }
+  result->pose_solves.push_back(std::move(report));
 }
 
 // A grow step of automatic sizing: the problem drops every block, the model

@@ -312,6 +312,19 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = 0.5; }},  // model has none
       {"stages[1].schedule.delta_skinning_from",
        [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = -0.5; }},
+      {"stages[1].pose_solve.at[0]", [&](SolverConfig* c) { S(c).pose_solve.at = {-0.1}; }},
+      {"stages[1].pose_solve.at[1]",
+       [&](SolverConfig* c) {
+         S(c).pose_solve.at = {0.5, 0.5};
+       }},
+      {"stages[1].pose_solve.rays", [&](SolverConfig* c) { S(c).pose_solve.rays = 0; }},
+      {"stages[1].pose_solve.iterations", [&](SolverConfig* c) { S(c).pose_solve.iterations = 0; }},
+      {"stages[1].pose_solve.search_ratio",
+       [&](SolverConfig* c) { S(c).pose_solve.search_ratio = -1; }},
+      {"stages[1].pose_solve.search_rotations",
+       [&](SolverConfig* c) { S(c).pose_solve.search_rotations = 0; }},
+      {"stages[1].pose_solve.search_keep",
+       [&](SolverConfig* c) { S(c).pose_solve.search_keep = 100; }},
       {"model.delta_skinning.width",
        [&](SolverConfig* c) {
          c->model.delta_skinning.enabled = true;
@@ -499,6 +512,12 @@ SolverConfig EveryFieldChanged() {
     s.schedule.bounds_refresh_every = 25;
     s.schedule.anneal_end_fraction = 0.4;
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
+    s.pose_solve.at = {0.2, 0.7};
+    s.pose_solve.rays = 96;
+    s.pose_solve.iterations = 4;
+    s.pose_solve.search_ratio = 2.5;
+    s.pose_solve.search_rotations = 24;
+    s.pose_solve.search_keep = 2;
     s.checkpoint_every = 50;
     s.log_every = 5;
     c.stages.push_back(s);
@@ -603,6 +622,12 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
     EXPECT_EQ(s.schedule.bounds_refresh_every, t.schedule.bounds_refresh_every);
     EXPECT_EQ(s.schedule.anneal_end_fraction, t.schedule.anneal_end_fraction);
+    EXPECT_EQ(s.pose_solve.at, t.pose_solve.at);
+    EXPECT_EQ(s.pose_solve.rays, t.pose_solve.rays);
+    EXPECT_EQ(s.pose_solve.iterations, t.pose_solve.iterations);
+    EXPECT_EQ(s.pose_solve.search_ratio, t.pose_solve.search_ratio);
+    EXPECT_EQ(s.pose_solve.search_rotations, t.pose_solve.search_rotations);
+    EXPECT_EQ(s.pose_solve.search_keep, t.pose_solve.search_keep);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
     EXPECT_EQ(s.checkpoint_every, t.checkpoint_every);
     EXPECT_EQ(s.log_every, t.log_every);

@@ -112,6 +112,21 @@ struct ScheduleConfig {
   double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)
 };
 
+// Per-frame root-pose solves (docs/solver.md, "Pose solves"): at the given
+// fractions of the stage, every frame's root pose by Levenberg-Marquardt on
+// `rays` rays of that frame with the fields held constant; frames whose cost
+// stays high try a multi-hypothesis search.
+struct PoseSolveConfig {
+  std::vector<double> at;  // fractions of the stage (increasing, in [0, 1]; empty = never)
+  int rays = 256;          // rays per frame, sampling.foreground_fraction of them in the mask
+  int iterations = 10;     // LM iterations per frame and per hypothesis
+  // A frame whose cost per ray after its solve exceeds search_ratio times
+  // the median frame's runs the search (0 = never).
+  double search_ratio = 0.0;
+  int search_rotations = 72;  // candidate rotations of the search (a uniform SO(3) set)
+  int search_keep = 3;        // the candidates of lowest cost refined by LM
+};
+
 // Parameter groups held constant (ceres SetParameterBlockConstant):
 // model/parameter_group.h, docs/config.md.
 struct StageConfig {
@@ -126,6 +141,7 @@ struct StageConfig {
   LmConfig lm;
   SamplingConfig sampling;
   ScheduleConfig schedule;
+  PoseSolveConfig pose_solve;
   int checkpoint_every = 0;  // batches between checkpoints (0 = end of stage only)
   int log_every = 10;        // batches between progress lines
 };

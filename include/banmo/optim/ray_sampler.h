@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "banmo/io/dataset.h"
@@ -28,6 +29,20 @@ class RaySampler {
                           const Model& model, const Eigen::AlignedBox3d& canonical_bounds,
                           std::mt19937* rng) const;
 
+  // Draws `count` rays of frame (video, frame) alone, no active rays (the
+  // per-frame pose solves).
+  std::vector<Ray> SampleFrame(int video, int frame, int count, int samples_per_ray,
+                               const SamplingConfig& sampling, const Model& model,
+                               const Eigen::AlignedBox3d& canonical_bounds,
+                               std::mt19937* rng) const;
+
+  // The usable (not skipped) frames, as (video, frame), in dataset order.
+  std::vector<std::pair<int, int>> UsableFrames() const {
+    std::vector<std::pair<int, int>> out;
+    for (const FrameRef& f : frames_) out.emplace_back(f.video, f.frame);
+    return out;
+  }
+
   // Active sampling: remembers the rays of a batch with their errors; later
   // batches draw `sampling.active_fraction` of their rays near the largest.
   void RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors);
@@ -48,6 +63,9 @@ class RaySampler {
   Ray MakeRay(int video, int frame, int x, int y, int samples_per_ray,
               const SamplingConfig& sampling, const Model& model,
               const Eigen::AlignedBox3d& canonical_bounds, std::mt19937* rng) const;
+  Ray RandomRay(int video, int frame, int samples_per_ray, const SamplingConfig& sampling,
+                const Model& model, const Eigen::AlignedBox3d& canonical_bounds,
+                std::mt19937* rng) const;
 
   const Dataset& dataset_;
   std::vector<FrameRef> frames_;

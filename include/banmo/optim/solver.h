@@ -36,6 +36,7 @@
 #include "banmo/model/model.h"
 #include "banmo/optim/auto_size.h"
 #include "banmo/optim/config.h"
+#include "banmo/optim/pose_solve_report.h"
 
 namespace banmo {
 
@@ -92,6 +93,8 @@ struct SolveResult {
   std::vector<StageSummary> stages;
   // Grow steps of automatic sizing (model.auto_size), in order.
   std::vector<AutoSizeEvent> auto_size;
+  // Per-frame pose solves (stage pose_solve.at), in order.
+  std::vector<PoseSolveReport> pose_solves;
   bool interrupted = false;  // stopped by SIGINT or stop_after_batches (checkpoint written)
 };
 
@@ -118,11 +121,15 @@ class Solver {
   // One batch: schedules, minibatch, step, progress, checkpoint.
   void RunBatch(int iteration, StageRun* run, StageProblem* problem, RunContext* c,
                 SolveResult* result);
-  // Annealing, bounds refresh, bone re-initialisation, automatic sizing.
+  // Annealing, bounds refresh, bone re-initialisation, automatic sizing,
+  // pose solves.
   void RunSchedules(int iteration, double fraction, const StageRun& run, StageProblem* problem,
                     RunContext* c, SolveResult* result);
   void Grow(int iteration, const StageRun& run, StageProblem* problem, RunContext* c,
             SolveResult* result);
+  // Every frame's root pose by LM on its own rays (optim/pose_solve.h).
+  void SolvePoses(int iteration, const StageRun& run, StageProblem* problem, RunContext* c,
+                  SolveResult* result);
   // The minibatch's rays (with importance-resampled depths when the stage
   // asks for them).
   std::vector<Ray> SampleRays(const StageConfig& stage, const RayBatch& batch, RaySampler* sampler,

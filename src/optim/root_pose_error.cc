@@ -1,0 +1,92 @@
+#include "banmo/optim/root_pose_error.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "banmo/util/format.h"
+#include "banmo/util/logging.h"
+
+namespace banmo {
+namespace {
+
+Eigen::Matrix3d Rotation(const Pose& p) {
+  return Eigen::Quaterniond(p[kPoseQw], p[kPoseQw + 1], p[kPoseQw + 2], p[kPoseQw + 3])
+      .normalized()
+      .toRotationMatrix();
+}
+
+// Through the quaternion (2 atan2(|v|, |w|)): accurate near 0, where
+// acos((trace - 1) / 2) loses half the digits.
+double AngleDeg(const Eigen::Matrix3d& r) {
+  const Eigen::Quaterniond q(r);
+  return 2.0 * std::atan2(q.vec().norm(), std::abs(q.w())) * 180.0 / M_PI;
+}
+
+// Errors of `estimate(v, t)` against the ground truth of every usable frame.
+template <class Estimate>
+std::optional<RootPoseErrors> Errors(const Dataset& dataset, const Estimate& estimate) {
+  std::vector<RootPoseErrors::FrameError> frames;
+  std::vector<Eigen::Matrix3d> gt, est;
+  for (size_t v = 0; v < dataset.videos.size(); ++v) {
+    const Video& video = dataset.videos[v];
+    for (size_t t = 0; t < video.frames.size(); ++t) {
+      const Frame& f = video.frames[t];
+      if (f.skip || !f.root_pose_gt) continue;
+      frames.push_back({static_cast<int>(v), static_cast<int>(t), 0.0});
+      gt.push_back(Rotation(*f.root_pose_gt));
+      est.push_back(Rotation(estimate(static_cast<int>(v), static_cast<int>(t))));
+    }
+  }
+  if (frames.empty()) return std::nullopt;
+  // A = argmin sum |R_gt A - R|_F^2 = the SO(3) projection of sum R_gt^T R.
+  Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < gt.size(); ++i) sum += gt[i].transpose() * est[i];
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(sum, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  RootPoseErrors out;
+  out.alignment = svd.matrixU() * d * svd.matrixV().transpose();
+  out.alignment_deg = AngleDeg(out.alignment);
+  std::vector<double> angles;
+  for (size_t i = 0; i < gt.size(); ++i) {
+    frames[i].rotation_deg = AngleDeg((gt[i] * out.alignment).transpose() * est[i]);
+    angles.push_back(frames[i].rotation_deg);
+  }
+  out.frames = std::move(frames);
+  double total = 0.0;
+  for (double a : angles) total += a;
+  out.mean_deg = total / angles.size();
+  std::sort(angles.begin(), angles.end());
+  const size_t rank = static_cast<size_t>(std::ceil(0.9 * angles.size()));
+  out.p90_deg = angles[std::max<size_t>(rank, 1) - 1];
+  out.max_deg = angles.back();
+  return out;
+}
+
+}  // namespace
+
+std::optional<RootPoseErrors> ComputeRootPoseErrors(const Model& model, const Dataset& dataset) {
+  CHECK_EQ(model.num_videos(), static_cast<int>(dataset.videos.size()));
+  for (int v = 0; v < model.num_videos(); ++v) {
+    CHECK_EQ(model.video(v).frames.size(), dataset.videos[v].frames.size());
+  }
+  return Errors(dataset, [&](int v, int t) { return model.RootPose(v, t); });
+}
+
+std::optional<RootPoseErrors> InitialRootPoseErrors(const Dataset& dataset) {
+  return Errors(dataset, [&](int v, int t) { return dataset.videos[v].frames[t].root_pose_init; });
+}
+
+std::string RootPoseErrorsCsv(const RootPoseErrors& errors) {
+  std::ostringstream out;
+  out << "video,frame,rotation_error_deg\n";
+  for (const auto& f : errors.frames) {
+    out << f.video << "," << f.frame << "," << FormatDouble(f.rotation_deg) << "\n";
+  }
+  return out.str();
+}
+
+}  // namespace banmo

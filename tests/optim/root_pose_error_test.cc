@@ -1,0 +1,71 @@
+#include "banmo/optim/root_pose_error.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace banmo {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+// One video of `n` frames with random ground-truth poses; the initial poses
+// are the ground truth turned by `global` on the object side (G_gt A).
+Dataset PosedDataset(int n, const Eigen::Vector3d& global) {
+  Dataset d;
+  d.videos.resize(1);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal;
+  const Pose a = PoseFromAngleAxis(global, Eigen::Vector3d::Zero());
+  for (int t = 0; t < n; ++t) {
+    Frame f;
+    f.index = t;
+    f.root_pose_gt = PoseFromAngleAxis(Eigen::Vector3d(normal(rng), normal(rng), normal(rng)),
+                                       Eigen::Vector3d(0, 0, 3));
+    PoseCompose(f.root_pose_gt->data(), a.data(), f.root_pose_init.data());
+    d.videos[0].frames.push_back(f);
+  }
+  return d;
+}
+
+TEST(RootPoseErrors, AGlobalTurnIsAlignedAway) {
+  const Dataset d = PosedDataset(20, Eigen::Vector3d(0.3, -0.5, 0.2));
+  const std::optional<RootPoseErrors> e = InitialRootPoseErrors(d);
+  ASSERT_TRUE(e.has_value());
+  ASSERT_EQ(e->frames.size(), 20u);
+  // Exact up to rounding (a few 1e-16 rad).
+  EXPECT_LT(e->max_deg, 1e-9);
+  EXPECT_NEAR(e->alignment_deg, Eigen::Vector3d(0.3, -0.5, 0.2).norm() / kDeg, 1e-6);
+}
+
+TEST(RootPoseErrors, OneFrameOffShowsInItsRowAndTheStatistics) {
+  Dataset d = PosedDataset(10, Eigen::Vector3d::Zero());
+  Frame& f = d.videos[0].frames[4];
+  const Pose turn = PoseFromAngleAxis(Eigen::Vector3d(0, 30 * kDeg, 0), Eigen::Vector3d::Zero());
+  const Pose before = f.root_pose_init;
+  PoseCompose(before.data(), turn.data(), f.root_pose_init.data());
+  d.videos[0].frames[7].skip = true;  // skipped frames are left out
+  const std::optional<RootPoseErrors> e = InitialRootPoseErrors(d);
+  ASSERT_TRUE(e.has_value());
+  ASSERT_EQ(e->frames.size(), 9u);
+  // The alignment absorbs about 1/9 of the turn (chordal mean), so frame 4
+  // shows about 8/9 of 30 deg and the others about 30/9 deg each.
+  EXPECT_NEAR(e->frames[4].rotation_deg, 30.0 * 8 / 9, 0.5);
+  EXPECT_NEAR(e->frames[0].rotation_deg, 30.0 / 9, 0.5);
+  EXPECT_EQ(e->max_deg, e->frames[4].rotation_deg);
+  EXPECT_EQ(e->p90_deg, e->frames[4].rotation_deg);  // rank ceil(0.9 * 9) = 9
+  const std::string csv = RootPoseErrorsCsv(*e);
+  EXPECT_EQ(csv.rfind("video,frame,rotation_error_deg\n0,0,", 0), 0u) << csv;
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 10);
+}
+
+TEST(RootPoseErrors, NoneWithoutGroundTruth) {
+  Dataset d = PosedDataset(3, Eigen::Vector3d::Zero());
+  for (Frame& f : d.videos[0].frames) f.root_pose_gt.reset();
+  EXPECT_FALSE(InitialRootPoseErrors(d).has_value());
+}
+
+}  // namespace
+}  // namespace banmo
