@@ -101,10 +101,13 @@ make_scene() {  # make_scene NAME
   [[ $rig == *.glb || $rig == *.gltf ]] && rig="$root/$rig"
   local extra=()
   [[ -n "${anim:-}" ]] && extra=(--animation "$anim")
-  echo "[scene] $name: $rig, $videos x $frames frames, ${size} px, noise $noise deg, gaps $gaps, scale $scale"
+  # pose_noise_deg: DEG (exact model) or MODEL:DEG, e.g. gaussian:50.
+  local model=exact
+  if [[ $noise == *:* ]]; then model="${noise%%:*}"; noise="${noise#*:}"; fi
+  echo "[scene] $name: $rig, $videos x $frames frames, ${size} px, noise $noise deg ($model), gaps $gaps, scale $scale"
   "$banmo" synth --rig "$rig" "${extra[@]}" --videos "$videos" --frames "$frames" --size "$size" \
-    --pose-noise "$noise" --gaps "$gaps" --seed "$seed" --object-scale "$scale" \
-    --out "$dir" --overwrite >"$scenes_dir/$name.log"
+    --pose-noise "$noise" --pose-noise-model "$model" --gaps "$gaps" --seed "$seed" \
+    --object-scale "$scale" --out "$dir" --overwrite >"$scenes_dir/$name.log"
 }
 
 run_trace() {  # run_trace KIND NAME SCENE BASE [extra args...] -- OVERRIDES...

@@ -192,10 +192,11 @@ TEST(HarnessTables, EveryStabilityCaseParsesAndHasItsScene) {
     }
     // The hard cases, each in every mode (a mode may add variants,
     // e.g. the fixed-scale twins of the scale cases in full mode); names are
-    // unique, so this also means at least 12 runs.
+    // unique, so this also means at least 15 runs. Root-pose noise in both
+    // models of `banmo synth` (exact: noiseDEG, gaussian: gnoiseDEG).
     for (const char* required :
-         {"noise20", "noise50", "noise90", "bird", "hand", "gap8", "scale0.01", "scale100",
-          "bones1", "bones64", "beta1e-4", "beta10"}) {
+         {"noise20", "noise50", "noise90", "gnoise20", "gnoise50", "gnoise90", "bird", "hand",
+          "gap8", "scale0.01", "scale100", "bones1", "bones64", "beta1e-4", "beta10"}) {
       EXPECT_TRUE(names.count(required))
           << "stability.txt has no " << required << " (" << mode << ")";
     }

@@ -95,8 +95,14 @@ std::vector<Pose> ReadPoseFile(const std::string& path, int expected_lines) {
   return poses;
 }
 
-void WritePoseFile(const std::string& path, const std::vector<Pose>& poses) {
+void WritePoseFile(const std::string& path, const std::vector<Pose>& poses,
+                   const std::string& comment) {
   std::string text = "# qw qx qy qz tx ty tz (camera_from_root), one line per frame\n";
+  if (!comment.empty()) {
+    std::istringstream lines(comment);
+    std::string line;
+    while (std::getline(lines, line)) text += "# " + line + "\n";
+  }
   char buffer[256];
   for (const Pose& p : poses) {
     std::snprintf(buffer, sizeof(buffer), "%.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", p[0], p[1],

@@ -356,7 +356,7 @@ void WriteContents(const Dataset& dataset, const internal::Manifest& manifest,
       init.push_back(f.root_pose_init);
       if (f.root_pose_gt) gt.push_back(*f.root_pose_gt);
     }
-    WritePoseFile(vdir + "/" + internal::kPosesInitName, init);
+    WritePoseFile(vdir + "/" + internal::kPosesInitName, init, video.root_poses_init_comment);
     if (mv.present.root_poses_gt) WritePoseFile(vdir + "/" + internal::kPosesGtName, gt);
     for (int t = 0; t < mv.frames; ++t) jobs.push_back({v, t});
   }

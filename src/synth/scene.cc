@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <sstream>
 
@@ -27,6 +28,16 @@ void SynthOptions::Check() const {
     if (!gaps.insert(g).second) fail("flow_gaps", "distinct gaps");
   }
   if (!(pose_noise_deg >= 0 && pose_noise_deg <= 180)) fail("pose_noise_deg", "in [0, 180]");
+  if (pose_noise_model == PoseNoiseModel::kGaussian) {
+    const double max_deg = GaussianNoiseMaximum().mean_angle * 180 / M_PI;
+    if (!(pose_noise_deg <= max_deg)) {
+      std::ostringstream expected;
+      expected << "at most " << std::floor(max_deg * 100) / 100
+               << " with the gaussian model (the largest mean rotation angle a Gaussian rotation "
+                  "vector reaches); use the exact model for larger errors";
+      fail("pose_noise_deg", expected.str());
+    }
+  }
   if (!(camera_distance > 1.5) || !std::isfinite(camera_distance)) {
     fail("camera_distance", "> 1.5 (the object has half-extent 1)");
   }
@@ -98,6 +109,104 @@ Eigen::Vector3d RandomUnitVector(std::mt19937_64& rng) {
 
 }  // namespace
 
+double GaussianNoiseMeanAngle(double sigma) {
+  CHECK(sigma >= 0 && std::isfinite(sigma)) << "sigma " << sigma;
+  if (sigma == 0) return 0;
+  // Maxwell density f(r) = sqrt(2/pi) r^2 / sigma^3 exp(-r^2 / (2 sigma^2));
+  // with u = x^2 / (2 sigma^2):
+  //   F(x)  = int_0^x f       = erf(x / (sigma sqrt 2)) - sqrt(2/pi) (x/sigma) e^-u
+  //   M1(x) = int_0^x r f(r)  = 2 sigma sqrt(2/pi) (1 - (1 + u) e^-u)
+  // The angle is r - k pi on [k pi, (k+1) pi] for even k, (k+1) pi - r for odd k.
+  const double c = std::sqrt(2 / M_PI);
+  auto cdf = [&](double x) {
+    return std::erf(x / (sigma * M_SQRT2)) -
+           c * (x / sigma) * std::exp(-x * x / (2 * sigma * sigma));
+  };
+  auto moment = [&](double x) {
+    const double u = x * x / (2 * sigma * sigma);
+    return 2 * sigma * c * (1 - (1 + u) * std::exp(-u));
+  };
+  double mean = 0;
+  double f_lo = 0, m_lo = 0;
+  // Beyond 40 sigma the Maxwell tail is below e^-800: nothing left to add.
+  for (int k = 0; k * M_PI < 40 * sigma; ++k) {
+    const double f_hi = cdf((k + 1) * M_PI), m_hi = moment((k + 1) * M_PI);
+    if (k % 2 == 0) {
+      mean += (m_hi - m_lo) - k * M_PI * (f_hi - f_lo);
+    } else {
+      mean += (k + 1) * M_PI * (f_hi - f_lo) - (m_hi - m_lo);
+    }
+    f_lo = f_hi;
+    m_lo = m_hi;
+  }
+  return mean;
+}
+
+GaussianNoisePeak GaussianNoiseMaximum() {
+  static const GaussianNoisePeak peak = [] {
+    // Golden-section search for the maximum on [0.5, 3] rad (the mean rises
+    // up to ~1.75 rad and falls after it; docs/synth.md has the curve).
+    const double g = (std::sqrt(5.0) - 1) / 2;
+    double a = 0.5, b = 3.0;
+    double x1 = b - g * (b - a), x2 = a + g * (b - a);
+    double f1 = GaussianNoiseMeanAngle(x1), f2 = GaussianNoiseMeanAngle(x2);
+    while (b - a > 1e-12) {
+      if (f1 < f2) {
+        a = x1;
+        x1 = x2;
+        f1 = f2;
+        x2 = a + g * (b - a);
+        f2 = GaussianNoiseMeanAngle(x2);
+      } else {
+        b = x2;
+        x2 = x1;
+        f2 = f1;
+        x1 = b - g * (b - a);
+        f1 = GaussianNoiseMeanAngle(x1);
+      }
+    }
+    GaussianNoisePeak p;
+    p.sigma = 0.5 * (a + b);
+    p.mean_angle = GaussianNoiseMeanAngle(p.sigma);
+    return p;
+  }();
+  return peak;
+}
+
+double GaussianNoiseSigma(double mean_angle) {
+  const GaussianNoisePeak peak = GaussianNoiseMaximum();
+  if (!(mean_angle >= 0 && mean_angle <= peak.mean_angle)) {
+    ThrowInputError("gaussian pose noise: a mean rotation angle of ", mean_angle * 180 / M_PI,
+                    " deg is not reachable (expected 0 to ", peak.mean_angle * 180 / M_PI,
+                    " deg, reached at per-axis sigma ", peak.sigma * 180 / M_PI, " deg)");
+  }
+  if (mean_angle == 0) return 0;
+  // The mean is increasing on [0, peak.sigma]: bisection for the crossing.
+  double lo = 0, hi = peak.sigma;
+  while (hi - lo > 1e-14) {
+    const double mid = 0.5 * (lo + hi);
+    if (GaussianNoiseMeanAngle(mid) < mean_angle) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return 0.5 * (lo + hi);
+}
+
+Eigen::Matrix3d DrawPoseNoiseRotation(PoseNoiseModel model, double angle, double sigma,
+                                      std::mt19937_64& rng) {
+  if (model == PoseNoiseModel::kExact) {
+    const Eigen::Vector3d axis = RandomUnitVector(rng);
+    return Eigen::AngleAxisd(angle, axis).toRotationMatrix();
+  }
+  const double x = NormalDraw(rng), y = NormalDraw(rng), z = NormalDraw(rng);
+  const Eigen::Vector3d w = sigma * Eigen::Vector3d(x, y, z);
+  const double norm = w.norm();
+  if (norm == 0) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(norm, w / norm).toRotationMatrix();
+}
+
 ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
   options.Check();
   const std::string problem = rig.Validate();
@@ -141,6 +250,9 @@ ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
   const double spacing = 360.0 / nvid;
   const double sweep = nvid == 1 ? 180.0 : std::min(360.0, spacing / (1 - options.azimuth_overlap));
   const double duration = plan.animation->Duration();
+  const double noise_angle = options.pose_noise_deg * kDegToRad;
+  const double noise_sigma =
+      options.pose_noise_model == PoseNoiseModel::kGaussian ? GaussianNoiseSigma(noise_angle) : 0.0;
 
   plan.frames.resize(nvid);
   for (int v = 0; v < nvid; ++v) {
@@ -183,11 +295,16 @@ ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
           CameraFromWorldLookAt(eye, target) * world_from_root;
       fp.camera_from_root_gt = PoseFromIsometry(camera_from_root);
       // Rough initialisation: a rotation about the root origin.
-      const Eigen::Vector3d axis = RandomUnitVector(noise_rng);
       Eigen::Isometry3d noise = Eigen::Isometry3d::Identity();
       noise.linear() =
-          Eigen::AngleAxisd(options.pose_noise_deg * kDegToRad, axis).toRotationMatrix();
-      fp.camera_from_root_init = PoseFromIsometry(camera_from_root * noise);
+          DrawPoseNoiseRotation(options.pose_noise_model, noise_angle, noise_sigma, noise_rng);
+      Eigen::Isometry3d init = camera_from_root * noise;
+      // BANMo's ablation: the object centre on the optical axis at the
+      // nominal distance (the script's t = (0, 0, 3)).
+      if (options.pose_noise_model == PoseNoiseModel::kGaussian) {
+        init.translation() = Eigen::Vector3d(0, 0, options.camera_distance);
+      }
+      fp.camera_from_root_init = PoseFromIsometry(init);
     }
   }
   return plan;
@@ -393,7 +510,75 @@ SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
     if (progress) progress(v + 1, nvid);
   }
   if (options.object_scale != 1.0) ScaleScene(options.object_scale, &scene);
+  if (options.pose_noise_deg > 0 || options.pose_noise_model != PoseNoiseModel::kExact) {
+    // Record the noise in each video's root_poses_init.txt (comment lines).
+    const PoseNoiseStats all = MeasurePoseNoise(scene.dataset);
+    auto line = [](const char* what, const PoseNoiseStats& st) {
+      char buffer[320];
+      std::snprintf(buffer, sizeof(buffer),
+                    "%s (%d frames): rotation error mean %.3f deg, p90 %.3f deg, max %.3f deg; "
+                    "translation error mean %.6g, p90 %.6g",
+                    what, st.frames, st.rotation_mean_deg, st.rotation_p90_deg, st.rotation_max_deg,
+                    st.translation_mean, st.translation_p90);
+      return std::string(buffer);
+    };
+    for (int v = 0; v < nvid; ++v) {
+      scene.dataset.videos[v].root_poses_init_comment =
+          "banmo synth pose noise: " + DescribePoseNoise(options) + ", seed " +
+          std::to_string(options.seed) + "\nmeasured against root_poses_gt.txt\n" +
+          line("this video", MeasurePoseNoise(scene.dataset, v)) + "\n" + line("all videos", all);
+    }
+  }
   return scene;
+}
+
+PoseNoiseStats MeasurePoseNoise(const Dataset& dataset, int video) {
+  CHECK(video >= -1 && video < static_cast<int>(dataset.videos.size())) << "video " << video;
+  std::vector<double> rotation, translation;
+  for (int v = 0; v < static_cast<int>(dataset.videos.size()); ++v) {
+    if (video >= 0 && v != video) continue;
+    for (const Frame& frame : dataset.videos[v].frames) {
+      if (!frame.root_pose_gt) continue;
+      const Pose& gt = *frame.root_pose_gt;
+      rotation.push_back(RotationAngleBetween(frame.root_pose_init.data(), gt.data()) / kDegToRad);
+      translation.push_back((frame.root_pose_init.tail<3>() - gt.tail<3>()).norm());
+    }
+  }
+  PoseNoiseStats st;
+  st.frames = static_cast<int>(rotation.size());
+  if (rotation.empty()) return st;
+  auto mean = [](const std::vector<double>& x) {
+    double sum = 0;
+    for (double e : x) sum += e;
+    return sum / x.size();
+  };
+  auto p90 = [](std::vector<double> x) {
+    std::sort(x.begin(), x.end());
+    const size_t rank = static_cast<size_t>(std::ceil(0.9 * x.size()));
+    return x[std::max<size_t>(rank, 1) - 1];
+  };
+  st.rotation_mean_deg = mean(rotation);
+  st.rotation_p90_deg = p90(rotation);
+  st.rotation_max_deg = *std::max_element(rotation.begin(), rotation.end());
+  st.translation_mean = mean(translation);
+  st.translation_p90 = p90(translation);
+  return st;
+}
+
+std::string DescribePoseNoise(const SynthOptions& options) {
+  options.Check();
+  char buffer[256];
+  if (options.pose_noise_model == PoseNoiseModel::kExact) {
+    std::snprintf(buffer, sizeof(buffer), "exact, %g deg about a random axis, translation kept",
+                  options.pose_noise_deg);
+  } else {
+    const double sigma = GaussianNoiseSigma(options.pose_noise_deg * kDegToRad) / kDegToRad;
+    std::snprintf(
+        buffer, sizeof(buffer),
+        "gaussian, mean %g deg (per-axis sigma %.4f deg), translation reset to (0, 0, %g)",
+        options.pose_noise_deg, sigma, options.camera_distance * options.object_scale);
+  }
+  return buffer;
 }
 
 void ScaleScene(double s, SynthScene* scene) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
 #include "banmo/geometry/mesh_io.h"
@@ -558,6 +559,18 @@ TEST(PoseFile, RoundTripAndComments) {
   ASSERT_EQ(back.size(), 2u);
   EXPECT_LE((back[1] - poses[1]).norm(), 1e-15);
   EXPECT_EQ(back[0], poses[0]);
+  // A comment (e.g. banmo synth's pose-noise record) becomes "# " lines after
+  // the header; the poses read back unchanged.
+  WritePoseFile(tmp.path() + "/c.txt", poses, "noise: gaussian\nmean 50 deg");
+  std::ifstream in(tmp.path() + "/c.txt");
+  std::string header, line1, line2;
+  std::getline(in, header);
+  std::getline(in, line1);
+  std::getline(in, line2);
+  EXPECT_EQ(header, "# qw qx qy qz tx ty tz (camera_from_root), one line per frame");
+  EXPECT_EQ(line1, "# noise: gaussian");
+  EXPECT_EQ(line2, "# mean 50 deg");
+  EXPECT_EQ(ReadPoseFile(tmp.path() + "/c.txt", 2), back);
 }
 
 }  // namespace

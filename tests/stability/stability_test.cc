@@ -26,6 +26,7 @@ struct HardCase {
   std::string name;
   std::string rig = "quadruped";
   double pose_noise_deg = 0;
+  synth::PoseNoiseModel pose_noise_model = synth::PoseNoiseModel::kExact;
   std::vector<int> gaps = {1, 2};
   int frames = 6;
   double object_scale = 1;
@@ -66,6 +67,7 @@ TEST_P(StabilityTest, EveryBatchFinite) {
   o.image_size = 48;
   o.flow_gaps = c.gaps;
   o.pose_noise_deg = c.pose_noise_deg;
+  o.pose_noise_model = c.pose_noise_model;
   o.object_scale = c.object_scale;
   o.seed = 1;
   const synth::SynthScene scene = synth::RenderSyntheticScene(synth::LoadRig(c.rig), o);
@@ -122,6 +124,15 @@ std::vector<HardCase> Cases() {
     HardCase c;
     c.name = "noise" + std::to_string(static_cast<int>(noise));
     c.pose_noise_deg = noise;
+    add(c);
+  }
+  {
+    // BANMo's Gaussian noise (mean 90 deg, angles spread from ~0 to 180) with
+    // the translation reset to (0, 0, 3).
+    HardCase c;
+    c.name = "gnoise90";
+    c.pose_noise_deg = 90;
+    c.pose_noise_model = synth::PoseNoiseModel::kGaussian;
     add(c);
   }
   {

@@ -1,10 +1,13 @@
 // `banmo synth` on glTF files as users have them, run as the built binary:
 // a Draco-compressed copy of the Fox (made here, never committed) renders
 // into a dataset `banmo check` accepts; a file requiring an unknown
-// extension is refused with the extension's name.
+// extension is refused with the extension's name; the pose-noise models'
+// options and record.
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "../common/run_banmo.h"
@@ -50,6 +53,44 @@ TEST(SynthCommand, UnknownRequiredExtensionIsNamed) {
   EXPECT_NE(r.out.find("EXT_not_in_this_loader"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find(path), std::string::npos) << r.out;
   EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+// --pose-noise-model: the Gaussian model's record in the printout and in
+// root_poses_init.txt, a dataset `banmo check` accepts; an unknown model and
+// an unreachable mean are errors naming the flag (exit 2, nothing written).
+TEST(SynthCommand, PoseNoiseModel) {
+  const std::string out = Temp("gaussian_ds");
+  std::filesystem::remove_all(out);
+  const auto r = RunBanmo(
+      "synth --videos 2 --frames 3 --size 32 --gaps 1 --pose-noise 50 "
+      "--pose-noise-model gaussian --out " +
+      out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("pose noise 50.0 deg (gaussian)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("rough root poses: gaussian, mean 50 deg (per-axis sigma 31.33"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("root_poses_init vs root_poses_gt over 6 frames: rotation error mean "),
+            std::string::npos)
+      << r.out;
+  std::ifstream in(out + "/video_000/root_poses_init.txt");
+  const std::string poses((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(poses.find("# banmo synth pose noise: gaussian"), std::string::npos) << poses;
+  EXPECT_NE(poses.find(" 0 0 3\n"), std::string::npos) << poses;  // translation reset
+  const auto c = RunBanmo("check " + out);
+  EXPECT_EQ(c.exit_code, 0) << c.out;
+
+  const std::string bad = Temp("bad_model_ds");
+  std::filesystem::remove_all(bad);
+  const auto m = RunBanmo("synth --pose-noise-model gauss --out " + bad);
+  EXPECT_EQ(m.exit_code, 2) << m.out;
+  EXPECT_NE(m.out.find("--pose-noise-model"), std::string::npos) << m.out;
+  EXPECT_NE(m.out.find("{exact, gaussian}"), std::string::npos) << m.out;
+  const auto big = RunBanmo("synth --pose-noise-model gaussian --pose-noise 130 --out " + bad);
+  EXPECT_EQ(big.exit_code, 2) << big.out;
+  EXPECT_NE(big.out.find("--pose-noise: 130 deg"), std::string::npos) << big.out;
+  EXPECT_NE(big.out.find("122.55"), std::string::npos) << big.out;
+  EXPECT_FALSE(std::filesystem::exists(bad));
 }
 
 }  // namespace

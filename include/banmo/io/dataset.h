@@ -65,6 +65,10 @@ struct Video {
   PinholeCamera camera;
   std::vector<Frame> frames;
   VideoContents present;  // what the files hold (see VideoContents)
+  // Written as '#' comment lines (one per line of this text) after the header
+  // of root_poses_init.txt, e.g. how `banmo synth` made the rough poses; not
+  // read back (LoadDataset leaves it empty).
+  std::string root_poses_init_comment;
 };
 
 struct Dataset {
@@ -166,7 +170,9 @@ std::string FrameFileName(int index, const std::string& extension);
 // norm 1 +- 1e-3 (it is then normalised). Throws InputError naming the file
 // and line. If expected_lines >= 0 the number of pose lines must match.
 std::vector<Pose> ReadPoseFile(const std::string& path, int expected_lines = -1);
-// Writes poses in the same format (17 significant digits), atomically.
-void WritePoseFile(const std::string& path, const std::vector<Pose>& poses);
+// Writes poses in the same format (17 significant digits), atomically. Each
+// line of `comment` becomes a "# " line after the format header.
+void WritePoseFile(const std::string& path, const std::vector<Pose>& poses,
+                   const std::string& comment = "");
 
 }  // namespace banmo

@@ -12,9 +12,12 @@
 //    elevation per video (consecutive videos share `azimuth_overlap` of their
 //    sweep), OpenCV axes (x right, y down, z forward), world y up.
 //  - Ground truth root pose G^t = camera_from_root = camera_from_world *
-//    world_from_root; the rough initialisation is G^t * R_noise with
-//    R_noise a rotation by exactly pose_noise_deg about a seeded random axis
-//    (independent per frame) through the root origin (the object centre).
+//    world_from_root; the rough initialisation is G^t * R_noise, R_noise a
+//    rotation through the root origin (the object centre) drawn per frame by
+//    the pose-noise model (PoseNoiseModel below): by exactly pose_noise_deg
+//    about a seeded random axis (`exact`, the default), or a Gaussian rotation
+//    vector whose mean angle is pose_noise_deg with the translation reset to
+//    (0, 0, camera_distance) (`gaussian`, BANMo's ablation).
 //  - Videos are unsynchronised: video v plays the animation from a random
 //    offset at a random speed in [1 - speed_jitter, 1 + speed_jitter].
 #pragma once
@@ -22,6 +25,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -31,8 +35,71 @@
 #include "banmo/io/dataset.h"
 #include "banmo/synth/rasterizer.h"
 #include "banmo/synth/rig.h"
+#include "banmo/util/enum_names.h"
 
 namespace banmo::synth {
+
+// How the rough root poses are drawn from the ground truth (docs/synth.md,
+// "Pose noise"). Both rotate about the root origin (the object centre), both
+// independently per frame from a stream seeded by SynthOptions::seed.
+enum class PoseNoiseModel {
+  // Rotation by exactly pose_noise_deg about a uniformly random axis; the
+  // translation is the ground truth's.
+  kExact,
+  // BANMo's ablation (scripts/misc/add_cam_noise.py): rotation vector
+  // w ~ N(0, sigma^2 I_3), sigma = GaussianNoiseSigma(pose_noise_deg) so that
+  // the mean rotation angle is pose_noise_deg; the translation is reset to
+  // (0, 0, camera_distance) (the script's (0, 0, 3)), i.e. the object centre
+  // is put on the optical axis at the nominal distance.
+  kGaussian,
+};
+
+}  // namespace banmo::synth
+
+namespace banmo {
+template <>
+struct EnumNames<synth::PoseNoiseModel> {
+  static constexpr std::pair<synth::PoseNoiseModel, const char*> kNames[] = {
+      {synth::PoseNoiseModel::kExact, "exact"}, {synth::PoseNoiseModel::kGaussian, "gaussian"}};
+};
+}  // namespace banmo
+
+namespace banmo::synth {
+
+// The Gaussian model's mean rotation angle E[angle(exp([w]))] in radians, for
+// w ~ N(0, sigma^2 I_3) (sigma in radians). |w| is Maxwell distributed; the
+// rotation angle is |w| folded into [0, pi] (2 pi periodic, mirrored), so the
+// mean is sigma * 2 sqrt(2 / pi) for small sigma, peaks at
+// kGaussianNoisePeak.mean_angle and then falls towards pi / 2 (large sigma:
+// the folded angle becomes uniform in [0, pi]). Evaluated in closed form, the
+// Maxwell distribution function and partial first moment on each fold
+// interval [k pi, (k + 1) pi] (erf and exp only; relative error ~1e-15).
+double GaussianNoiseMeanAngle(double sigma);
+
+// The largest mean angle of the Gaussian model and the sigma where it is
+// reached (radians), found once by golden-section search on [0.5, 3] rad:
+// mean 122.556 deg at sigma ~99.2 deg. The mean is flat at its peak, so the
+// sigma is known to ~1e-7 rad only, the mean to ~1e-15 rad.
+struct GaussianNoisePeak {
+  double sigma = 0;
+  double mean_angle = 0;
+};
+GaussianNoisePeak GaussianNoiseMaximum();
+
+// The per-axis sigma (radians) whose mean rotation angle is `mean_angle`
+// (radians): the smallest such sigma, by bisection on [0, peak sigma] (the
+// mean is increasing there) to 1e-14 rad, so the mean is matched to ~1e-14
+// rad. Mean 20 / 50 / 90 deg: sigma 12.533 / 31.333 / 56.804 deg. Throws
+// InputError if mean_angle is outside [0, peak mean angle].
+double GaussianNoiseSigma(double mean_angle);
+
+// One draw of the rotation R_noise of the rough pose (G_init = G_gt * R_noise)
+// for `model`: `exact` rotates by angle (radians) about a random unit axis (3
+// normal draws, redrawn if their norm is below 1e-6); `gaussian` uses
+// sigma (radians) * (3 normal draws) as the rotation vector. `angle` is used
+// by `exact`, `sigma` by `gaussian`.
+Eigen::Matrix3d DrawPoseNoiseRotation(PoseNoiseModel model, double angle, double sigma,
+                                      std::mt19937_64& rng);
 
 struct SynthOptions {
   int num_videos = 5;                         // V >= 1
@@ -42,9 +109,12 @@ struct SynthOptions {
   double fps = 30;                            // frames per second of animation time
   std::vector<int> flow_gaps = {1, 2, 4, 8};  // positive, distinct; forward and backward flow
   double pose_noise_deg = 0;                  // rotation noise of the rough root poses, [0, 180]
-  std::uint64_t seed = 0;                     // everything random derives from it
-  double camera_distance = 3;                 // camera to object centre (the paper's ~3 units)
-  double focal_factor = 1.0;                  // fx = fy = focal_factor * image_size (pixels)
+  // exact: every frame is off by pose_noise_deg; gaussian: the mean over
+  // frames is pose_noise_deg (at most 122.55), and the translation is reset.
+  PoseNoiseModel pose_noise_model = PoseNoiseModel::kExact;
+  std::uint64_t seed = 0;         // everything random derives from it
+  double camera_distance = 3;     // camera to object centre (the paper's ~3 units)
+  double focal_factor = 1.0;      // fx = fy = focal_factor * image_size (pixels)
   double azimuth_overlap = 0.5;   // fraction of a video's sweep shared with the next, [0, 1)
   double elevation_min_deg = -5;  // camera elevation range over the videos
   double elevation_max_deg = 40;
@@ -105,8 +175,31 @@ struct SynthScene {
 // leaves every projection unchanged. Used for SynthOptions::object_scale.
 void ScaleScene(double s, SynthScene* scene);
 
+// Error of the rough root poses against the ground truth over the frames of
+// video `video` (-1: all videos) that have a ground-truth pose. Rotation: the
+// geodesic angle between the rotations, degrees; translation: |t_init -
+// t_gt| in scene units. p90 is the nearest-rank 90th percentile (the
+// ceil(0.9 n)-th smallest value).
+struct PoseNoiseStats {
+  int frames = 0;
+  double rotation_mean_deg = 0;
+  double rotation_p90_deg = 0;
+  double rotation_max_deg = 0;
+  double translation_mean = 0;
+  double translation_p90 = 0;
+};
+PoseNoiseStats MeasurePoseNoise(const Dataset& dataset, int video = -1);
+
+// The noise model of `options` in words, e.g. "gaussian, mean 50 deg
+// (per-axis sigma 31.34 deg), translation reset to (0, 0, 3)" or "exact, 20
+// deg about a random axis, translation kept". Checks the options first.
+std::string DescribePoseNoise(const SynthOptions& options);
+
 // Renders the whole scene (both cores, frames in parallel). `progress`, if
-// set, is called after each video with (videos done, total videos).
+// set, is called after each video with (videos done, total videos). When the
+// rough poses are not the ground truth (pose_noise_deg > 0 or the gaussian
+// model), each video's root_poses_init_comment records the noise model and
+// the measured error of that video and of the whole dataset.
 SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
                                 const std::function<void(int, int)>& progress = {});
 
