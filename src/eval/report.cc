@@ -127,9 +127,12 @@ std::string FormatSummaryJson(const EvalReport& report, const EvalOptions& optio
      << ", \"trim_fraction\": " << Num(options.trim_fraction)
      << ", \"huber_factor\": " << Num(options.huber_factor)
      << ", \"num_samples\": " << options.num_samples
+     << ", \"dense_samples\": " << options.dense_samples
+     << ", \"dense_icp_queries\": " << options.dense_icp_queries
      << ", \"icp_max_queries\": " << options.icp_max_queries << ", \"seed\": " << options.seed
      << ", \"symmetric_icp\": " << (options.symmetric_icp ? "true" : "false")
      << ", \"max_scale_change\": " << Num(options.max_scale_change)
+     << ", \"gt_mode\": " << JsonString(GtModeName(options.gt_mode))
      << ", \"gt_max_edge\": " << Num(options.gt_max_edge) << "}\n";
   os << "}\n";
   return os.str();
