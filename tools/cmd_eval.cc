@@ -152,6 +152,7 @@ int RunEval(int argc, char** argv) {
   const std::vector<TriangleMesh> gt = ReadMeshes(gt_files);
   EvalReport report;
   report.protocol = options.protocol;
+  report.gt_mode = options.gt_mode;
   for (std::size_t i = 0; i < gt.size(); ++i) {
     report.frames.push_back(EvaluatePair(pred[i], gt[i], options, pred_files[i], gt_files[i]));
     std::fprintf(stderr, "  frame %zu/%zu: CD %.3f cm (%.1f s)\n", i + 1, gt.size(),

@@ -369,6 +369,7 @@ EvalReport EvaluateSequence(const std::vector<TriangleMesh>& pred,
   CHECK(gt_names.empty() || gt_names.size() == gt.size());
   EvalReport report;
   report.protocol = options.protocol;
+  report.gt_mode = options.gt_mode;
   for (std::size_t i = 0; i < pred.size(); ++i) {
     const std::string frame = "frame " + std::to_string(i);
     report.frames.push_back(EvaluatePair(

@@ -143,7 +143,13 @@ std::string FormatReportTable(const EvalReport& report) {
   char line[512];
   std::snprintf(line, sizeof(line), "%-5s %-28s %10s %10s %7s %7s %7s %6s %5s\n", "frame", "pred",
                 "CD(cm)", "CDmean", "F@1%", "F@2%", "F@5%", "scale", "icp");
-  os << "protocol: " << EvalProtocolName(report.protocol) << "\n" << line;
+  os << "protocol: " << EvalProtocolName(report.protocol);
+  if (report.protocol == EvalProtocol::kBanmo) {
+    os << ", ground truth " << GtModeName(report.gt_mode)
+       << (report.gt_mode == GtMode::kDense ? " (surfaces, docs/eval.md)"
+                                            : " (vertices, BANMo's script)");
+  }
+  os << "\n" << line;
   for (std::size_t i = 0; i < report.frames.size(); ++i) {
     const FrameEval& f = report.frames[i];
     std::string name = BaseName(f.pred_name);

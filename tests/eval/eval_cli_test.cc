@@ -176,6 +176,7 @@ TEST_F(EvalCli, DatasetAsGroundTruth) {
   ASSERT_NE(at, std::string::npos) << json;
   EXPECT_LT(std::stod(json.substr(at + 14)), 1e-9) << json;
   EXPECT_NE(json.find("\"gt_mode\": \"dense\""), std::string::npos) << json;
+  EXPECT_NE(r.out.find("protocol: banmo, ground truth dense"), std::string::npos) << r.out;
   // Frame count mismatch against the dataset.
   r = RunEval("--pred " + Path("pred") + " --gt " + dir);
   EXPECT_EQ(r.exit_code, 2);

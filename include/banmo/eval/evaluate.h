@@ -110,6 +110,7 @@ struct FrameEval {
 
 struct EvalReport {
   EvalProtocol protocol = EvalProtocol::kBanmo;
+  GtMode gt_mode = GtMode::kDense;  // banmo protocol only
   std::vector<FrameEval> frames;
   // Means over frames.
   double chamfer_cm = 0.0;       // sum convention, BANMo's "CD (cm)"
