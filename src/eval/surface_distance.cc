@@ -71,9 +71,10 @@ struct TriangleSurface3::Impl {
 };
 
 namespace {
-// Nearest seeds looked at first; enough to certify most queries near the
-// surface without the radius search.
-constexpr int kFirstSeeds = 8;
+// Nearest seeds looked at first (measured 2, 4, 8, 16, 32 on the Fox and a
+// 36k-vertex mesh: 2 and 4 the fastest, 8 and more slower); the radius
+// search does the rest.
+constexpr int kFirstSeeds = 4;
 }  // namespace
 
 TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, double seed_spacing) {

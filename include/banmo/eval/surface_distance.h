@@ -22,9 +22,9 @@ Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 // grid with steps no longer than that), each remembering its triangle, in a
 // FLANN kd-tree (KdTree3). Every point of a triangle is then within
 // `SeedCover()` (<= seed_spacing / sqrt(3)) of a seed on that triangle. A
-// query evaluates the triangles of its 8 nearest seeds
+// query evaluates the triangles of its 4 nearest seeds
 // (ClosestPointOnTriangle); a triangle closer than the best point found so
-// far has a seed within best + cover, so if the 8th seed is at least that
+// far has a seed within best + cover, so if the 4th seed is at least that
 // far the result is exact; otherwise every seed within that radius is
 // evaluated too (KdTree3::WithinRadius), which makes it exact. Queries may
 // be issued from several threads.
