@@ -164,6 +164,51 @@ TEST(KdTree3, NearestKMatchesSortedBruteForce) {
   EXPECT_EQ(idx(2, 0), -1);
 }
 
+TEST(KdTree3, WithinRadiusMatchesBruteForce) {
+  Uniform u(8);
+  Eigen::Matrix3Xd points(3, 2000);
+  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) = u.Vector();
+  const KdTree3 tree(points);
+  std::vector<int> idx;
+  std::vector<double> sq;
+  for (int q = 0; q < 50; ++q) {
+    const Eigen::Vector3d query = 1.1 * u.Vector();
+    const double radius = 0.05 + 0.01 * q;
+    tree.WithinRadius(query, radius, &idx, &sq);
+    std::vector<int> expected;
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      if ((points.col(i) - query).squaredNorm() < radius * radius) {
+        expected.push_back(static_cast<int>(i));
+      }
+    }
+    ASSERT_EQ(idx.size(), sq.size());
+    for (std::size_t k = 0; k < idx.size(); ++k) {
+      EXPECT_DOUBLE_EQ(sq[k], (points.col(idx[k]) - query).squaredNorm());
+    }
+    std::sort(idx.begin(), idx.end());
+    EXPECT_EQ(idx, expected) << "radius " << radius;
+  }
+  tree.WithinRadius(Eigen::Vector3d::Zero(), 0.0, &idx, &sq);
+  EXPECT_TRUE(idx.empty());
+}
+
+TEST(SampleSurface, ReportsTheFaceOfEverySample) {
+  const TriangleMesh mesh = Blob(Eigen::Vector3d(0, 0, 3), 6, 8);
+  std::vector<int> faces;
+  const Eigen::Matrix3Xd samples = SampleSurface(mesh, 3000, 6, &faces);
+  EXPECT_EQ(samples, SampleSurface(mesh, 3000, 6));  // same stream with or without
+  ASSERT_EQ(faces.size(), 3000u);
+  for (int i = 0; i < 3000; ++i) {
+    const int f = faces[static_cast<std::size_t>(i)];
+    ASSERT_GE(f, 0);
+    ASSERT_LT(f, mesh.NumFaces());
+    const Eigen::Vector3d x = ClosestPointOnTriangle(
+        samples.col(i), mesh.vertices.col(mesh.faces(0, f)), mesh.vertices.col(mesh.faces(1, f)),
+        mesh.vertices.col(mesh.faces(2, f)));
+    EXPECT_LT((x - samples.col(i)).norm(), 1e-12) << i;
+  }
+}
+
 TEST(ShuffleColumns, IsADeterministicPermutation) {
   Eigen::Matrix3Xd points(3, 1000);
   for (int i = 0; i < 1000; ++i) points.col(i) = Eigen::Vector3d(i, 2 * i, 3 * i);
