@@ -29,11 +29,11 @@ std::string EvalProtocolName(EvalProtocol protocol);
 
 // What the ground truth is in the banmo protocol (docs/eval.md).
 enum class GtMode {
-  // The ground truth is its surface (default): prediction->GT distances are
-  // exact distances to the GT triangles (the limit of an ever finer
-  // subdivision), GT->prediction distances start from area-uniform samples
-  // of the GT surface. A coarse (low-poly) ground truth then scores a
-  // prediction of its own surface at 0 cm / 100 %.
+  // Both meshes are surfaces (default): area-uniform samples of each, exact
+  // distances to the other mesh's triangles (the limit of an ever finer
+  // subdivision; the prediction's vertices if it has no triangles). A
+  // coarse (low-poly) ground truth then scores a prediction of its own
+  // surface at 0 cm / 100 %.
   kDense,
   // BANMo's script: the GT vertices only (optionally subdivided, gt_max_edge).
   kVertices,
@@ -96,8 +96,8 @@ struct EvalOptions {
 struct FrameEval {
   std::string pred_name;          // label of the predicted mesh (file name)
   std::string gt_name;            // label of the ground-truth mesh
-  int num_pred_points = 0;        // vertices (banmo) or samples (surface)
-  int num_gt_points = 0;          // vertices (banmo, GT vertices), samples (surface, dense GT)
+  int num_pred_points = 0;        // points averaged: vertices (banmo, GT vertices) or
+  int num_gt_points = 0;          // samples (surface protocol, dense ground truth)
   double gt_normalization = 1.0;  // factor applied to both meshes (1 / half-extent)
   double initial_scale = 1.0;     // median-depth ratio (banmo) or RMS-radius ratio (surface)
   IcpResult icp;                  // in normalised units; icp.source_to_target.scale is
