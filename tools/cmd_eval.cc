@@ -53,6 +53,7 @@ int RunEval(int argc, char** argv) {
   std::string out_dir;
   std::string protocol = "banmo";
   std::string robust = "none";
+  std::string gt_mode = "dense";
   EvalOptions options;
   int threads = 0;
   app.add_option("--pred", pred_path,
@@ -80,19 +81,31 @@ int RunEval(int argc, char** argv) {
   app.add_option("--huber-factor", options.huber_factor,
                  "Huber ICP: delta = factor x median residual")
       ->capture_default_str();
+  app.add_option("--gt-mode", gt_mode,
+                 "Banmo protocol: dense (both meshes are surfaces: --dense-samples area-uniform "
+                 "samples of each, distances to the other's triangles) or vertices (vertices "
+                 "only, BANMo's script, for comparison with the paper)")
+      ->capture_default_str();
   app.add_option("--samples", options.num_samples, "Surface protocol: samples per mesh")
+      ->capture_default_str();
+  app.add_option("--dense-samples", options.dense_samples,
+                 "Banmo protocol, --gt-mode dense: area-uniform samples of each surface")
+      ->capture_default_str();
+  app.add_option("--dense-icp-queries", options.dense_icp_queries,
+                 "Banmo protocol, --gt-mode dense: predicted samples used as ICP queries (0 = "
+                 "all)")
       ->capture_default_str();
   app.add_option("--icp-queries", options.icp_max_queries,
                  "Surface protocol: ICP query points per direction (0 = all samples)")
       ->capture_default_str();
-  app.add_option("--seed", options.seed, "Surface protocol: sampling seed")->capture_default_str();
+  app.add_option("--seed", options.seed, "Seed of the surface samples")->capture_default_str();
   app.add_option("--max-scale-change", options.max_scale_change,
                  "Surface protocol: ICP scale stays within [s0/k, s0*k]")
       ->capture_default_str();
   app.add_option("--gt-max-edge", options.gt_max_edge,
-                 "Banmo protocol: subdivide the ground truth (surface unchanged) until no edge "
-                 "is longer than this (normalised units, longest bbox edge 2; 0 = off, as "
-                 "BANMo's script). For coarse ground truths such as low-poly glTF models")
+                 "Banmo protocol, --gt-mode vertices only: subdivide the ground truth (surface "
+                 "unchanged) until no edge is longer than this (normalised units, longest bbox "
+                 "edge 2; 0 = off, as BANMo's script). The previous dense protocol; slow")
       ->capture_default_str();
   bool one_sided = false;
   app.add_flag("--one-sided-icp", one_sided,
@@ -102,7 +115,14 @@ int RunEval(int argc, char** argv) {
 
   options.protocol = ParseEvalProtocol(protocol, "--protocol");
   options.robust = ParseRobustLoss(robust, "--robust");
+  options.gt_mode = ParseGtMode(gt_mode, "--gt-mode");
   options.symmetric_icp = !one_sided;
+  if (options.gt_max_edge > 0.0 && options.gt_mode == GtMode::kDense) {
+    ThrowInputError(
+        "--gt-max-edge: applies to --gt-mode vertices only (the previous dense "
+        "protocol); the default --gt-mode dense already measures against the exact "
+        "ground-truth surface (docs/eval.md)");
+  }
   options.Check();
   if (threads < 0) ThrowInputError("--threads: must be >= 0, got ", threads);
   if (threads > 0) SetNumThreads(threads);
@@ -122,13 +142,17 @@ int RunEval(int argc, char** argv) {
                     " meshes but --gt ", gt_path, " has ", gt_files.size(),
                     " (expected one prediction per ground-truth frame)", hint);
   }
-  std::fprintf(stderr, "banmo eval: %zu frame(s), protocol %s\n", gt_files.size(),
-               protocol.c_str());
+  std::fprintf(stderr, "banmo eval: %zu frame(s), protocol %s%s\n", gt_files.size(),
+               protocol.c_str(),
+               options.protocol == EvalProtocol::kBanmo
+                   ? (", ground truth " + GtModeName(options.gt_mode)).c_str()
+                   : "");
   const Timer timer;
   const std::vector<TriangleMesh> pred = ReadMeshes(pred_files);
   const std::vector<TriangleMesh> gt = ReadMeshes(gt_files);
   EvalReport report;
   report.protocol = options.protocol;
+  report.gt_mode = options.gt_mode;
   for (std::size_t i = 0; i < gt.size(); ++i) {
     report.frames.push_back(EvaluatePair(pred[i], gt[i], options, pred_files[i], gt_files[i]));
     std::fprintf(stderr, "  frame %zu/%zu: CD %.3f cm (%.1f s)\n", i + 1, gt.size(),

@@ -29,7 +29,10 @@ void WriteSolveOutputs(const Model& model, const Dataset& dataset, const std::st
     for (const Frame& frame : video.frames) gt_files.push_back(frame.gt_mesh_path);
   }
   const std::vector<std::string> pred_files = ListMeshFiles(out_dir + "/meshes/frames");
-  EvalOptions options;  // banmo protocol: comparable with the paper's Tab. 1
+  // The banmo protocol against the dense ground truth (the default,
+  // docs/eval.md); `banmo eval --gt-mode vertices` gives the paper's raw
+  // vertex protocol.
+  EvalOptions options;
   const EvalReport report =
       EvaluateSequence(ReadMeshes(pred_files), ReadMeshes(gt_files), options, pred_files, gt_files);
   std::fputs(FormatReportTable(report).c_str(), stdout);

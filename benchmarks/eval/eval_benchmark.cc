@@ -78,6 +78,7 @@ BENCHMARK(BM_ChamferFrame_BruteForce)->Unit(benchmark::kMillisecond)->UseRealTim
 void BM_EvaluatePair_Banmo(benchmark::State& state) {
   EvalOptions options;
   options.protocol = EvalProtocol::kBanmo;
+  options.gt_mode = GtMode::kVertices;  // the vertex protocol (README); dense: eval_frame_benchmark
   int iterations = 0;
   for (auto _ : state) iterations = EvaluatePair(Pred(), Gt(), options).icp.iterations;
   state.SetItemsProcessed(state.iterations());

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "banmo/eval/nearest_neighbors.h"
+#include "banmo/eval/surface_distance.h"
 #include "banmo/eval/surface_sampling.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
@@ -22,6 +23,14 @@ std::string EvalProtocolName(EvalProtocol protocol) {
   return protocol == EvalProtocol::kBanmo ? "banmo" : "surface";
 }
 
+GtMode ParseGtMode(const std::string& name, const std::string& what) {
+  if (name == "dense") return GtMode::kDense;
+  if (name == "vertices") return GtMode::kVertices;
+  ThrowInputError(what, ": unknown ground-truth mode '", name, "' (expected dense or vertices)");
+}
+
+std::string GtModeName(GtMode mode) { return mode == GtMode::kDense ? "dense" : "vertices"; }
+
 void EvalOptions::Check() const {
   if (icp_iterations < 0) ThrowInputError("icp_iterations: must be >= 0, got ", icp_iterations);
   if (!(icp_relative_tolerance >= 0.0)) {
@@ -32,11 +41,24 @@ void EvalOptions::Check() const {
   }
   if (!(huber_factor > 0.0)) ThrowInputError("huber_factor: must be > 0, got ", huber_factor);
   if (num_samples < 100) ThrowInputError("num_samples: must be >= 100, got ", num_samples);
+  if (dense_samples < 100) {
+    ThrowInputError("dense_samples: must be >= 100, got ", dense_samples);
+  }
+  if (dense_icp_queries < 0) {
+    ThrowInputError("dense_icp_queries: must be >= 0, got ", dense_icp_queries);
+  }
   if (icp_max_queries < 0) ThrowInputError("icp_max_queries: must be >= 0, got ", icp_max_queries);
   if (!(max_scale_change >= 1.0)) {
     ThrowInputError("max_scale_change: must be >= 1, got ", max_scale_change);
   }
   if (!(gt_max_edge >= 0.0)) ThrowInputError("gt_max_edge: must be >= 0, got ", gt_max_edge);
+  if (gt_max_edge > 0.0 && gt_mode == GtMode::kDense) {
+    ThrowInputError(
+        "gt_max_edge: subdivides the ground-truth vertices of gt mode 'vertices' "
+        "(--gt-mode vertices); the default gt mode 'dense' already measures against "
+        "the exact surface (docs/eval.md), got ",
+        gt_max_edge);
+  }
 }
 
 namespace {
@@ -56,7 +78,8 @@ void ValidateMesh(const TriangleMesh& mesh, const std::string& name, bool need_f
   }
   if (need_faces && !(MeshArea(mesh) > 0.0)) {
     ThrowInputError(name, ": mesh has no triangle with positive area (", mesh.NumFaces(),
-                    " faces); the surface protocol samples the surface");
+                    " faces); the surface protocol and the dense ground truth (--gt-mode dense) "
+                    "need a surface (a point-cloud ground truth: --gt-mode vertices)");
   }
 }
 
@@ -73,6 +96,74 @@ Eigen::Vector3d RmsAboutCentroid(const Eigen::Matrix3Xd& points, double* rms) {
   const Eigen::Vector3d c = points.rowwise().mean();
   *rms = std::sqrt((points.colwise() - c).colwise().squaredNorm().mean());
   return c;
+}
+
+void ThrowIfBehindCamera(double median_z, const std::string& name) {
+  if (!(median_z > 0.0)) {
+    ThrowInputError(name, ": median depth (z) is ", median_z,
+                    "; the banmo protocol expects meshes in camera coordinates in front of the "
+                    "camera (use --protocol surface for other coordinates)");
+  }
+}
+
+bool HasArea(const TriangleMesh& mesh) { return mesh.NumFaces() > 0 && MeshArea(mesh) > 0.0; }
+
+// The banmo protocol against a dense ground truth (GtMode::kDense): the GT is
+// its surface. `out->gt_normalization` is set; fills the rest of `out`.
+void EvaluateDense(const TriangleMesh& pred, const TriangleMesh& gt, const EvalOptions& options,
+                   const std::string& pred_name, const std::string& gt_name,
+                   double longest_normalized, FrameEval* out) {
+  const double n = out->gt_normalization;
+  // Both meshes are surfaces: `dense_samples` area-uniform samples of each
+  // (random order, so the first icp_max_queries are a uniform subset for
+  // ICP); the prediction's vertices if it has no triangle of positive area.
+  const bool pred_has_area = HasArea(pred);
+  Eigen::Matrix3Xd g = SampleSurface(gt, options.dense_samples, options.seed);
+  Eigen::Matrix3Xd p = pred_has_area ? SampleSurface(pred, options.dense_samples, options.seed)
+                                     : ShuffleColumns(pred.vertices, options.seed);
+  // Median depths over the samples (the surfaces' median depths).
+  const double z_pred = MedianDepth(p);
+  const double z_gt = MedianDepth(g);
+  ThrowIfBehindCamera(z_pred, pred_name);
+  ThrowIfBehindCamera(z_gt, gt_name);
+  out->initial_scale = z_gt / z_pred;
+  p *= out->initial_scale * n;
+  g *= n;
+  out->num_pred_points = static_cast<int>(p.cols());
+  out->num_gt_points = static_cast<int>(g.cols());
+
+  // The GT surface, built once: ICP and prediction->GT distances.
+  const TriangleSurface3 gt_surface(gt, n);
+  if (options.icp_iterations > 0) {
+    IcpOptions icp;
+    icp.max_iterations = options.icp_iterations;
+    icp.relative_rmse_tolerance = options.icp_relative_tolerance;
+    icp.estimate_scale = false;  // rigid from the identity, as BANMo's script
+    icp.symmetric = false;
+    icp.robust = options.robust;
+    icp.trim_fraction = options.trim_fraction;
+    icp.huber_factor = options.huber_factor;
+    icp.max_queries = options.dense_icp_queries;
+    out->icp = RunIcpToSurface(p, gt_surface, Similarity(), icp);
+  }
+  const Similarity& t = out->icp.source_to_target;
+
+  Eigen::Matrix3Xd closest;
+  Eigen::VectorXd sq;
+  gt_surface.Closest(t.Apply(p), &closest, &sq);
+  const Eigen::VectorXd pred_to_gt = sq.cwiseSqrt();
+  // GT->prediction: to the predicted surface when it has triangles, else to
+  // its vertices; searched in the untransformed prediction,
+  // d(q, T(P)) = s * d(T^-1(q), P).
+  if (pred_has_area) {
+    const TriangleSurface3 pred_surface(pred, out->initial_scale * n);
+    pred_surface.Closest(t.ApplyInverse(g), &closest, &sq);
+  } else {
+    Eigen::VectorXi idx;
+    KdTree3(p).Nearest(t.ApplyInverse(g), &idx, &sq);
+  }
+  const Eigen::VectorXd gt_to_pred = t.scale * sq.cwiseSqrt();
+  out->metrics = ComputeDistanceMetrics(pred_to_gt, gt_to_pred, longest_normalized);
 }
 
 }  // namespace
@@ -135,8 +226,9 @@ FrameEval EvaluatePair(const TriangleMesh& pred, const TriangleMesh& gt, const E
                        const std::string& pred_name, const std::string& gt_name) {
   options.Check();
   const bool surface = options.protocol == EvalProtocol::kSurface;
+  const bool dense_gt = !surface && options.gt_mode == GtMode::kDense;
   ValidateMesh(pred, pred_name, surface);
-  ValidateMesh(gt, gt_name, surface);
+  ValidateMesh(gt, gt_name, surface || dense_gt);
 
   FrameEval out;
   out.pred_name = pred_name;
@@ -151,6 +243,11 @@ FrameEval EvaluatePair(const TriangleMesh& pred, const TriangleMesh& gt, const E
   }
   out.gt_normalization = 2.0 / longest;
   const double longest_normalized = longest * out.gt_normalization;  // = 2 up to rounding
+
+  if (!surface && options.gt_mode == GtMode::kDense) {
+    EvaluateDense(pred, gt, options, pred_name, gt_name, longest_normalized, &out);
+    return out;
+  }
 
   Eigen::Matrix3Xd p;
   Eigen::Matrix3Xd g;
@@ -272,6 +369,7 @@ EvalReport EvaluateSequence(const std::vector<TriangleMesh>& pred,
   CHECK(gt_names.empty() || gt_names.size() == gt.size());
   EvalReport report;
   report.protocol = options.protocol;
+  report.gt_mode = options.gt_mode;
   for (std::size_t i = 0; i < pred.size(); ++i) {
     const std::string frame = "frame " + std::to_string(i);
     report.frames.push_back(EvaluatePair(

@@ -4,6 +4,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include "banmo/util/error.h"
@@ -138,11 +139,17 @@ double WeightedRmse(const Eigen::VectorXd& r, const Eigen::VectorXd& w) {
 
 }  // namespace
 
-IcpResult RunIcp(const KdTree3& source, const KdTree3& target, const Similarity& init,
-                 const IcpOptions& options) {
-  options.Check();
-  const Eigen::Matrix3Xd x = Prefix(source.Points(), options.max_queries);
-  const Eigen::Matrix3Xd y = Prefix(target.Points(), options.max_queries);
+namespace {
+
+// Closest points of a fixed set (kd-tree points or a surface) for each query.
+using ClosestFn = std::function<void(const Eigen::Matrix3Xd& queries, Eigen::Matrix3Xd* closest)>;
+
+// The ICP loop shared by RunIcp and RunIcpToSurface. `x` are the source
+// queries, `y` the target queries (symmetric only); closest_in_target(T(x))
+// and closest_in_source(T^-1(y)) give the partners.
+IcpResult IcpLoop(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& y,
+                  const ClosestFn& closest_in_target, const ClosestFn& closest_in_source,
+                  const Similarity& init, const IcpOptions& options) {
   const Eigen::Index nx = x.cols();
   const Eigen::Index ny = options.symmetric ? y.cols() : 0;
   const double s0 = init.scale;
@@ -158,21 +165,16 @@ IcpResult RunIcp(const KdTree3& source, const KdTree3& target, const Similarity&
   // [nx, nx + ny) target->source pairs (symmetric only).
   Eigen::Matrix3Xd src(3, nx + ny);
   Eigen::Matrix3Xd dst(3, nx + ny);
-  Eigen::VectorXi idx;
-  Eigen::VectorXd sq;
+  Eigen::Matrix3Xd partners;
   double prev_rmse = -1.0;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
-    target.Nearest(transform.Apply(x), &idx, &sq);
-    for (Eigen::Index i = 0; i < nx; ++i) {
-      src.col(i) = x.col(i);
-      dst.col(i) = target.Points().col(idx(i));
-    }
+    closest_in_target(transform.Apply(x), &partners);
+    src.leftCols(nx) = x;
+    dst.leftCols(nx) = partners;
     if (ny > 0) {
-      source.Nearest(transform.ApplyInverse(y), &idx, &sq);
-      for (Eigen::Index k = 0; k < ny; ++k) {
-        src.col(nx + k) = source.Points().col(idx(k));
-        dst.col(nx + k) = y.col(k);
-      }
+      closest_in_source(transform.ApplyInverse(y), &partners);
+      src.rightCols(ny) = partners;
+      dst.rightCols(ny) = y;
     }
     // Residuals under the current transform give the robust weights.
     const Eigen::VectorXd r_before = (transform.Apply(src) - dst).colwise().norm().transpose();
@@ -210,6 +212,43 @@ IcpResult RunIcp(const KdTree3& source, const KdTree3& target, const Similarity&
     prev_rmse = rmse;
   }
   return result;
+}
+
+ClosestFn KdTreeClosest(const KdTree3& tree) {
+  return [&tree](const Eigen::Matrix3Xd& queries, Eigen::Matrix3Xd* closest) {
+    Eigen::VectorXi idx;
+    Eigen::VectorXd sq;
+    tree.Nearest(queries, &idx, &sq);
+    closest->resize(3, queries.cols());
+    for (Eigen::Index i = 0; i < queries.cols(); ++i) closest->col(i) = tree.Points().col(idx(i));
+  };
+}
+
+}  // namespace
+
+IcpResult RunIcp(const KdTree3& source, const KdTree3& target, const Similarity& init,
+                 const IcpOptions& options) {
+  options.Check();
+  return IcpLoop(
+      Prefix(source.Points(), options.max_queries),
+      options.symmetric ? Prefix(target.Points(), options.max_queries) : Eigen::Matrix3Xd(3, 0),
+      KdTreeClosest(target), KdTreeClosest(source), init, options);
+}
+
+IcpResult RunIcpToSurface(const Eigen::Matrix3Xd& source, const TriangleSurface3& target,
+                          const Similarity& init, const IcpOptions& options) {
+  options.Check();
+  if (options.symmetric) {
+    ThrowInputError("icp symmetric: not available against a surface (one-sided only)");
+  }
+  CHECK_GT(source.cols(), 0) << "RunIcpToSurface needs at least one source point";
+  return IcpLoop(
+      Prefix(source, options.max_queries), Eigen::Matrix3Xd(3, 0),
+      [&target](const Eigen::Matrix3Xd& queries, Eigen::Matrix3Xd* closest) {
+        Eigen::VectorXd sq;
+        target.Closest(queries, closest, &sq);
+      },
+      ClosestFn(), init, options);
 }
 
 }  // namespace banmo

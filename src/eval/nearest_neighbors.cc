@@ -4,7 +4,9 @@
 #include <flann/algorithms/kdtree_single_index.h>
 #include <flann/util/result_set.h>
 
+#include <algorithm>
 #include <limits>
+#include <vector>
 
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
@@ -59,6 +61,51 @@ void KdTree3::Nearest(const Eigen::Matrix3Xd& queries, Eigen::VectorXi* indices,
       (*squared_distances)(i) = dist;
     }
   });
+}
+
+void KdTree3::NearestK(const Eigen::Matrix3Xd& queries, int k, Eigen::MatrixXi* indices,
+                       Eigen::MatrixXd* squared_distances) const {
+  CHECK_GE(k, 1);
+  const int n = static_cast<int>(queries.cols());
+  indices->setConstant(k, n, -1);
+  squared_distances->setConstant(k, n, std::numeric_limits<double>::infinity());
+  const int found = std::min(k, NumPoints());
+  flann::SearchParams params;
+  params.eps = 0.0f;  // exact
+  params.checks = flann::FLANN_CHECKS_UNLIMITED;
+  params.sorted = true;
+  ParallelFor(n, [&](int begin, int end) {
+    flann::KNNSimpleResultSet<double> result(static_cast<std::size_t>(found));
+    std::vector<std::size_t> index(static_cast<std::size_t>(found));
+    for (int i = begin; i < end; ++i) {
+      result.clear();
+      impl_->index.findNeighbors(result, queries.col(i).data(), params);
+      result.copy(index.data(), squared_distances->col(i).data(), static_cast<std::size_t>(found),
+                  true);
+      for (int j = 0; j < found; ++j) {
+        (*indices)(j, i) = static_cast<int>(index[static_cast<std::size_t>(j)]);
+      }
+    }
+  });
+}
+
+void KdTree3::WithinRadius(const Eigen::Vector3d& query, double radius, std::vector<int>* indices,
+                           std::vector<double>* squared_distances) const {
+  indices->clear();
+  squared_distances->clear();
+  if (!(radius > 0.0)) return;
+  flann::SearchParams params;
+  params.eps = 0.0f;  // exact
+  params.checks = flann::FLANN_CHECKS_UNLIMITED;
+  params.sorted = false;
+  flann::RadiusResultSet<double> result(radius * radius);  // L2_Simple: squared
+  impl_->index.findNeighbors(result, query.data(), params);
+  const std::size_t n = result.size();
+  std::vector<std::size_t> index(n);
+  squared_distances->resize(n);
+  if (n > 0) result.copy(index.data(), squared_distances->data(), n, false);
+  indices->reserve(n);
+  for (const std::size_t i : index) indices->push_back(static_cast<int>(i));
 }
 
 void BruteForceNearest(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& queries,

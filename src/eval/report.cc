@@ -127,9 +127,12 @@ std::string FormatSummaryJson(const EvalReport& report, const EvalOptions& optio
      << ", \"trim_fraction\": " << Num(options.trim_fraction)
      << ", \"huber_factor\": " << Num(options.huber_factor)
      << ", \"num_samples\": " << options.num_samples
+     << ", \"dense_samples\": " << options.dense_samples
+     << ", \"dense_icp_queries\": " << options.dense_icp_queries
      << ", \"icp_max_queries\": " << options.icp_max_queries << ", \"seed\": " << options.seed
      << ", \"symmetric_icp\": " << (options.symmetric_icp ? "true" : "false")
      << ", \"max_scale_change\": " << Num(options.max_scale_change)
+     << ", \"gt_mode\": " << JsonString(GtModeName(options.gt_mode))
      << ", \"gt_max_edge\": " << Num(options.gt_max_edge) << "}\n";
   os << "}\n";
   return os.str();
@@ -140,7 +143,13 @@ std::string FormatReportTable(const EvalReport& report) {
   char line[512];
   std::snprintf(line, sizeof(line), "%-5s %-28s %10s %10s %7s %7s %7s %6s %5s\n", "frame", "pred",
                 "CD(cm)", "CDmean", "F@1%", "F@2%", "F@5%", "scale", "icp");
-  os << "protocol: " << EvalProtocolName(report.protocol) << "\n" << line;
+  os << "protocol: " << EvalProtocolName(report.protocol);
+  if (report.protocol == EvalProtocol::kBanmo) {
+    os << ", ground truth " << GtModeName(report.gt_mode)
+       << (report.gt_mode == GtMode::kDense ? " (surfaces, docs/eval.md)"
+                                            : " (vertices, BANMo's script)");
+  }
+  os << "\n" << line;
   for (std::size_t i = 0; i < report.frames.size(); ++i) {
     const FrameEval& f = report.frames[i];
     std::string name = BaseName(f.pred_name);

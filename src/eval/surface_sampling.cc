@@ -43,7 +43,8 @@ double MeshArea(const TriangleMesh& mesh) {
   return area;
 }
 
-Eigen::Matrix3Xd SampleSurface(const TriangleMesh& mesh, int num_samples, std::uint64_t seed) {
+Eigen::Matrix3Xd SampleSurface(const TriangleMesh& mesh, int num_samples, std::uint64_t seed,
+                               std::vector<int>* faces) {
   CHECK_GE(num_samples, 0);
   const int num_faces = mesh.NumFaces();
   std::vector<double> cumulative(static_cast<std::size_t>(num_faces));
@@ -58,6 +59,7 @@ Eigen::Matrix3Xd SampleSurface(const TriangleMesh& mesh, int num_samples, std::u
   }
   SplitMix64 rng(seed);
   Eigen::Matrix3Xd samples(3, num_samples);
+  if (faces != nullptr) faces->resize(static_cast<std::size_t>(num_samples));
   for (int i = 0; i < num_samples; ++i) {
     // Pick a face by area: the first whose cumulative area exceeds u * total
     // (zero-area faces are never picked).
@@ -65,6 +67,7 @@ Eigen::Matrix3Xd SampleSurface(const TriangleMesh& mesh, int num_samples, std::u
     const auto it = std::upper_bound(cumulative.begin(), cumulative.end(), u);
     const int f = static_cast<int>(std::min<std::ptrdiff_t>(
         it - cumulative.begin(), static_cast<std::ptrdiff_t>(num_faces) - 1));
+    if (faces != nullptr) (*faces)[static_cast<std::size_t>(i)] = f;
     const double sa = std::sqrt(rng.Uniform());
     const double b = rng.Uniform();
     samples.col(i) = (1.0 - sa) * mesh.vertices.col(mesh.faces(0, f)) +
@@ -72,6 +75,17 @@ Eigen::Matrix3Xd SampleSurface(const TriangleMesh& mesh, int num_samples, std::u
                      sa * b * mesh.vertices.col(mesh.faces(2, f));
   }
   return samples;
+}
+
+Eigen::Matrix3Xd ShuffleColumns(const Eigen::Matrix3Xd& points, std::uint64_t seed) {
+  Eigen::Matrix3Xd out = points;
+  SplitMix64 rng(seed);
+  for (Eigen::Index i = out.cols() - 1; i > 0; --i) {
+    // j uniform in [0, i] (the modulo bias is below 2^-40 for any mesh size).
+    const auto j = static_cast<Eigen::Index>(rng.Next() % static_cast<std::uint64_t>(i + 1));
+    out.col(i).swap(out.col(j));
+  }
+  return out;
 }
 
 }  // namespace banmo

@@ -170,7 +170,13 @@ TEST_F(EvalCli, DatasetAsGroundTruth) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("4 frame(s)"), std::string::npos) << r.out;
   const std::string json = ReadText(Path("out/summary.json"));
-  EXPECT_NE(json.find("\"chamfer_cm\": 0,"), std::string::npos) << json;  // identical meshes
+  // Identical meshes: 0 up to rounding (the dense ground truth's closest
+  // points on the triangles are computed, not copied: ~1e-13 cm).
+  const std::size_t at = json.find("\"chamfer_cm\": ");
+  ASSERT_NE(at, std::string::npos) << json;
+  EXPECT_LT(std::stod(json.substr(at + 14)), 1e-9) << json;
+  EXPECT_NE(json.find("\"gt_mode\": \"dense\""), std::string::npos) << json;
+  EXPECT_NE(r.out.find("protocol: banmo, ground truth dense"), std::string::npos) << r.out;
   // Frame count mismatch against the dataset.
   r = RunEval("--pred " + Path("pred") + " --gt " + dir);
   EXPECT_EQ(r.exit_code, 2);

@@ -18,10 +18,21 @@ using testing::UvSphere;
 // Object about 3 units in front of the camera (z forward).
 const Eigen::Vector3d kCenter(0.2, -0.1, 3.0);
 
+// These tests pin BANMo's vertex protocol (--gt-mode vertices) and the
+// surface protocol; the dense ground truth (the default) is tested below.
 EvalOptions Options(EvalProtocol protocol) {
   EvalOptions options;
   options.protocol = protocol;
+  options.gt_mode = GtMode::kVertices;
   options.num_samples = 8000;  // enough for these smooth shapes, keeps the test quick
+  return options;
+}
+
+EvalOptions DenseOptions() {
+  EvalOptions options;  // the default: banmo protocol, dense ground truth
+  EXPECT_EQ(options.protocol, EvalProtocol::kBanmo);
+  EXPECT_EQ(options.gt_mode, GtMode::kDense);
+  options.dense_samples = 20000;
   return options;
 }
 
@@ -43,6 +54,11 @@ TEST(EvaluatePair, IdenticalMeshesGiveZeroAndFullFscore) {
     EXPECT_TRUE(f.icp.converged);
     EXPECT_NEAR(f.initial_scale, 1.0, 1e-12);
   }
+  const FrameEval dense = EvaluatePair(blob, blob, DenseOptions());
+  EXPECT_LT(dense.ChamferCm(), 1e-9);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(dense.metrics.fscore[k], 1.0);
+  EXPECT_TRUE(dense.icp.converged);
+  EXPECT_NEAR(dense.initial_scale, 1.0, 1e-12);
 }
 
 // A copy under a known similarity: rotation up to 30 degrees, scale 0.5-2,
@@ -230,6 +246,7 @@ TEST(EvaluatePair, GtSubdivisionRemovesTheVertexSamplingFloor) {
   const TriangleMesh gt = Square(1);
   const TriangleMesh pred = Square(40);
   EvalOptions options;
+  options.gt_mode = GtMode::kVertices;
   options.icp_iterations = 0;
   const FrameEval coarse = EvaluatePair(pred, gt, options);
   options.gt_max_edge = 0.05;
@@ -237,6 +254,90 @@ TEST(EvaluatePair, GtSubdivisionRemovesTheVertexSamplingFloor) {
   EXPECT_GT(coarse.ChamferCm(), 30.0);
   EXPECT_LT(fine.ChamferCm(), 5.0);
   EXPECT_LT(fine.ChamferCm(), 0.1 * coarse.ChamferCm());
+}
+
+// The ceiling test (docs/eval.md): a prediction that is exactly the ground
+// truth's surface. A low-poly ground truth (a blob of 5 x 8 quads, 82
+// triangles) and the same surface split into 16 x 16 triangles per triangle
+// (every vertex on it). With the dense ground truth (the default) it scores
+// 0 cm / 100 %, up to the sampling noise of the median-depth scale; against
+// the raw vertices (--gt-mode vertices) the distances go to the 34 corners and
+// the same surface scores far from the ceiling.
+TEST(EvaluatePair, CeilingDenseGroundTruthAgainstItselfIsZeroAndFull) {
+  const TriangleMesh gt = Blob(kCenter, 6, 8);
+  const TriangleMesh pred = testing::SplitEachTriangle(gt, 16);
+  ASSERT_GT(pred.NumVertices(), 100 * gt.NumVertices() / 3);
+  const FrameEval dense = EvaluatePair(pred, gt, DenseOptions());
+  EXPECT_LT(dense.ChamferCm(), 0.05);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(dense.metrics.fscore[k], 1.0) << k;
+  // The same without ICP and with the scale fixed to 1 is exact.
+  EvalOptions exact = DenseOptions();
+  exact.icp_iterations = 0;
+  const FrameEval no_icp = EvaluatePair(pred, gt, exact);
+  EXPECT_NEAR(no_icp.initial_scale, 1.0, 2e-3);
+  EvalOptions vertices = DenseOptions();
+  vertices.gt_mode = GtMode::kVertices;
+  const FrameEval raw = EvaluatePair(pred, gt, vertices);
+  EXPECT_GT(raw.ChamferCm(), 10.0);
+  EXPECT_LT(raw.metrics.fscore[1], 0.8);
+  EXPECT_GT(raw.ChamferCm(), 100.0 * dense.ChamferCm());
+}
+
+// The dense ground truth does not depend on how either surface is
+// tessellated: the same prediction against the GT and against the GT split
+// 4 x 4 scores the same (up to sampling noise), and a prediction off by a
+// known gap scores it: concentric spheres, radius 1 and 1.03 (the faces of
+// the finer UV sphere are within 0.0012 of the sphere).
+TEST(EvaluatePair, DenseGroundTruthIsIndependentOfTessellation) {
+  const TriangleMesh gt = UvSphere(1.0, kCenter, 64, 128);
+  const TriangleMesh pred = UvSphere(1.03, kCenter, 48, 96);
+  EvalOptions options = DenseOptions();
+  options.icp_iterations = 0;
+  const FrameEval a = EvaluatePair(pred, gt, options);
+  const FrameEval b = EvaluatePair(pred, testing::SplitEachTriangle(gt, 4), options);
+  EXPECT_NEAR(a.initial_scale, 1.0, 2e-3);
+  EXPECT_NEAR(a.ChamferCm(), 6.0, 0.5);
+  EXPECT_NEAR(a.ChamferCm(), b.ChamferCm(), 0.05);
+  EXPECT_EQ(a.metrics.fscore[0], 0.0);  // 3 cm > tau_1 = 2 cm
+  EXPECT_EQ(a.metrics.fscore[2], 1.0);  // 3 cm < tau_5 = 10 cm
+  // With a prediction without triangles (points only), GT->prediction goes
+  // to its vertices: the vertex spacing shows (larger than with faces).
+  TriangleMesh points = pred;
+  points.faces.resize(3, 0);
+  const FrameEval c = EvaluatePair(points, gt, options);
+  EXPECT_GT(c.metrics.gt_to_pred, a.metrics.gt_to_pred);
+}
+
+TEST(EvaluatePair, DenseGroundTruthUndoesDepthScaleAndRigidMotion) {
+  const TriangleMesh gt = Blob(kCenter);
+  const Eigen::Matrix3d r = Rotation(5.0, Eigen::Vector3d(0, 0, 1));
+  TriangleMesh pred = Transformed(gt, 1.0, r, kCenter - r * kCenter + Eigen::Vector3d(0.05, 0, 0));
+  pred.vertices *= 1.5;
+  const FrameEval f = EvaluatePair(pred, gt, DenseOptions());
+  // Same faces and seed: corresponding samples, the median ratio is exact.
+  EXPECT_NEAR(f.initial_scale, 1.0 / 1.5, 1e-12);
+  EXPECT_LT(f.ChamferCm(), 1e-3);
+  EXPECT_EQ(f.metrics.fscore[0], 1.0);
+}
+
+TEST(EvaluatePair, DenseGroundTruthBadInputsAreNamed) {
+  const TriangleMesh good = Blob(kCenter);
+  TriangleMesh points_only = good;
+  points_only.faces.resize(3, 0);
+  EXPECT_NE(ErrorOf([&] {
+              EvaluatePair(good, points_only, DenseOptions(), "p.ply", "g.ply");
+            }).find("g.ply: mesh has no triangle with positive area"),
+            std::string::npos);
+  EvalOptions options = DenseOptions();
+  options.gt_max_edge = 0.02;
+  EXPECT_NE(ErrorOf([&] { options.Check(); }).find("gt_max_edge"), std::string::npos);
+  options = DenseOptions();
+  options.dense_samples = 10;
+  EXPECT_NE(ErrorOf([&] { options.Check(); }).find("dense_samples"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { ParseGtMode("sparse", "--gt-mode"); }).find("--gt-mode"),
+            std::string::npos);
+  EXPECT_EQ(ParseGtMode("dense"), GtMode::kDense);
+  EXPECT_EQ(ParseGtMode("vertices"), GtMode::kVertices);
 }
 
 }  // namespace

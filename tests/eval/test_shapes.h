@@ -71,6 +71,40 @@ inline TriangleMesh Transformed(const TriangleMesh& mesh, double s, const Eigen:
   return out;
 }
 
+// Every triangle split into n x n smaller ones (barycentric grid, vertices
+// not shared between triangles): the same surface with many more vertices.
+inline TriangleMesh SplitEachTriangle(const TriangleMesh& mesh, int n) {
+  TriangleMesh out;
+  const int per_face_vertices = (n + 1) * (n + 2) / 2;
+  out.vertices.resize(3, mesh.NumFaces() * per_face_vertices);
+  out.faces.resize(3, mesh.NumFaces() * n * n);
+  int v = 0;
+  int f = 0;
+  for (int t = 0; t < mesh.NumFaces(); ++t) {
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.faces(0, t));
+    const Eigen::Vector3d b = mesh.vertices.col(mesh.faces(1, t));
+    const Eigen::Vector3d c = mesh.vertices.col(mesh.faces(2, t));
+    const int base = v;
+    auto index = [&](int i, int j) {  // i + j <= n, row-major over i
+      return base + i * (n + 1) - i * (i - 1) / 2 + j;
+    };
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; i + j <= n; ++j) {
+        out.vertices.col(v++) =
+            a + (static_cast<double>(i) / n) * (b - a) + (static_cast<double>(j) / n) * (c - a);
+      }
+    }
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; i + j < n; ++j) {
+        out.faces.col(f++) << index(i, j), index(i + 1, j), index(i, j + 1);
+        if (i + j + 1 < n)
+          out.faces.col(f++) << index(i + 1, j), index(i + 1, j + 1), index(i, j + 1);
+      }
+    }
+  }
+  return out;
+}
+
 inline Eigen::Matrix3d Rotation(double degrees, const Eigen::Vector3d& axis) {
   return Eigen::AngleAxisd(degrees * M_PI / 180.0, axis.normalized()).toRotationMatrix();
 }

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "banmo/eval/nearest_neighbors.h"
+#include "banmo/eval/surface_distance.h"
 
 namespace banmo {
 
@@ -85,5 +86,13 @@ struct IcpResult {
 // correspondences (queries of inverse-transformed target points).
 IcpResult RunIcp(const KdTree3& source, const KdTree3& target, const Similarity& init,
                  const IcpOptions& options);
+
+// The same loop with a triangle surface as the target: every iteration pairs
+// each source point with its exact closest point on the surface
+// (TriangleSurface3), then aligns as above. One-sided only (options.symmetric
+// must be false, else InputError); options.max_queries limits the source
+// points used (a prefix of the columns: pass them in random order).
+IcpResult RunIcpToSurface(const Eigen::Matrix3Xd& source, const TriangleSurface3& target,
+                          const Similarity& init, const IcpOptions& options);
 
 }  // namespace banmo

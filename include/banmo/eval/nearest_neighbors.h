@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <vector>
 
 namespace banmo {
 
@@ -29,6 +30,19 @@ class KdTree3 {
   // squared Euclidean distance to it. Parallel over queries (util/parallel.h).
   void Nearest(const Eigen::Matrix3Xd& queries, Eigen::VectorXi* indices,
                Eigen::VectorXd* squared_distances) const;
+
+  // The k nearest indexed points of every query column (k >= 1; fewer
+  // columns are valid when the tree holds fewer than k points: the rest are
+  // -1 with an infinite distance): column q of `indices` / `squared_distances`
+  // (k x queries), in increasing distance.
+  void NearestK(const Eigen::Matrix3Xd& queries, int k, Eigen::MatrixXi* indices,
+                Eigen::MatrixXd* squared_distances) const;
+
+  // Indices of the indexed points closer than `radius` to `query` (strictly)
+  // and their squared distances, in no particular order. Thread-safe (one
+  // query, no parallelism inside).
+  void WithinRadius(const Eigen::Vector3d& query, double radius, std::vector<int>* indices,
+                    std::vector<double>* squared_distances) const;
 
  private:
   struct Impl;

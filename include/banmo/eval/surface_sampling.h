@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <vector>
 
 #include "banmo/geometry/mesh.h"
 
@@ -19,6 +20,13 @@ double MeshArea(const TriangleMesh& mesh);
 // uniform subsample. Two meshes with the same faces and triangle areas in
 // the same proportions (e.g. similar copies) get corresponding samples for the
 // same seed. Throws InputError if the mesh has no triangle of positive area.
-Eigen::Matrix3Xd SampleSurface(const TriangleMesh& mesh, int num_samples, std::uint64_t seed);
+// If `faces` is given, it receives the face index of every sample.
+Eigen::Matrix3Xd SampleSurface(const TriangleMesh& mesh, int num_samples, std::uint64_t seed,
+                               std::vector<int>* faces = nullptr);
+
+// The columns of `points` in a random order (Fisher-Yates with the same
+// splitmix64 stream, so the same on every platform): any prefix is then a
+// uniform random subset.
+Eigen::Matrix3Xd ShuffleColumns(const Eigen::Matrix3Xd& points, std::uint64_t seed);
 
 }  // namespace banmo
