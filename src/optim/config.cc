@@ -507,6 +507,16 @@ class Checker {
   void Fraction(const std::string& key, double v) const {
     if (!(v >= 0 && v <= 1)) Fail(key, "expected a fraction in [0, 1], got ", v);
   }
+  // key[i] for each i: fractions of a stage, strictly increasing.
+  void IncreasingFractions(const std::string& key, const std::vector<double>& v) const {
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string item = key + "[" + std::to_string(i) + "]";
+      Fraction(item, v[i]);
+      if (i > 0 && !(v[i] > v[i - 1])) {
+        Fail(item, "expected increasing fractions, got ", v[i], " after ", v[i - 1]);
+      }
+    }
+  }
 
  private:
   const std::string& source_;
@@ -596,27 +606,13 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   }
 
   const std::string h = p + ".schedule";
-  for (size_t i = 0; i < s.schedule.bone_reinit_at.size(); ++i) {
-    const std::string key = h + ".bone_reinit_at[" + std::to_string(i) + "]";
-    c.Fraction(key, s.schedule.bone_reinit_at[i]);
-    if (i > 0 && !(s.schedule.bone_reinit_at[i] > s.schedule.bone_reinit_at[i - 1])) {
-      c.Fail(key, "expected increasing fractions, got ", s.schedule.bone_reinit_at[i], " after ",
-             s.schedule.bone_reinit_at[i - 1]);
-    }
-  }
+  c.IncreasingFractions(h + ".bone_reinit_at", s.schedule.bone_reinit_at);
   c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
 
   const std::string q = p + ".pose_solve";
-  for (size_t i = 0; i < s.pose_solve.at.size(); ++i) {
-    const std::string key = q + ".at[" + std::to_string(i) + "]";
-    c.Fraction(key, s.pose_solve.at[i]);
-    if (i > 0 && !(s.pose_solve.at[i] > s.pose_solve.at[i - 1])) {
-      c.Fail(key, "expected increasing fractions, got ", s.pose_solve.at[i], " after ",
-             s.pose_solve.at[i - 1]);
-    }
-  }
+  c.IncreasingFractions(q + ".at", s.pose_solve.at);
   c.Positive(q + ".rays", s.pose_solve.rays);
   c.Positive(q + ".iterations", s.pose_solve.iterations);
   c.NonNegative(q + ".search_ratio", s.pose_solve.search_ratio);
