@@ -218,6 +218,35 @@ TEST(Solver, ResumeAtABoneReinitBatchReinitializes) {
   ExpectResumeEqualsStraight(config, {3}, "banmo_resume_reinit_test");
 }
 
+// Pose solves (with the search) draw from the run's RNG and drop the root
+// Adam moments: a run stopped at their batch and one stopped after them both
+// resume to the uninterrupted result. The solves also report every frame.
+TEST(Solver, ResumeWithPoseSolvesIsBitwiseIdentical) {
+  SolverConfig config = TinyConfig(StepRule::kAdam, 6);
+  config.stages[0].pose_solve.at = {0.5};  // batch 3
+  config.stages[0].pose_solve.rays = 32;
+  config.stages[0].pose_solve.iterations = 2;
+  config.stages[0].pose_solve.search_ratio = 1.0;  // about half the frames search
+  config.stages[0].pose_solve.search_rotations = 4;
+  config.stages[0].pose_solve.search_keep = 1;
+  ExpectResumeEqualsStraight(config, {3, 4}, "banmo_resume_pose_solve_test");
+
+  const Dataset& data = TinyDataset();
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  SolveOptions options;
+  options.quiet = true;
+  const SolveResult r = solver.Run(options);
+  ASSERT_EQ(r.pose_solves.size(), 1u);
+  const PoseSolveReport& report = r.pose_solves[0];
+  EXPECT_EQ(report.iteration, 3);
+  EXPECT_EQ(static_cast<int>(report.frames.size()), data.NumFrames() - data.NumSkippedFrames());
+  EXPECT_GT(report.searched, 0);
+  for (const FramePoseSolve& f : report.frames) {
+    EXPECT_LE(f.cost_after, f.cost_before) << f.video << "/" << f.frame;
+    EXPECT_TRUE(std::isfinite(f.rotation_deg));
+  }
+}
+
 SolverConfig AutoSizeConfig(int iterations) {
   SolverConfig config = TinyConfig(StepRule::kAdam, iterations);
   config.model.auto_size.enabled = true;
