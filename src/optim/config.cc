@@ -613,6 +613,9 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
 
   const std::string q = p + ".pose_solve";
   c.IncreasingFractions(q + ".at", s.pose_solve.at);
+  if (!s.pose_solve.at.empty() && constant.Contains(ParameterGroup::kRoot)) {
+    c.Fail(q + ".at", "pose solves move the root poses, which this stage holds constant");
+  }
   c.Positive(q + ".rays", s.pose_solve.rays);
   c.Positive(q + ".iterations", s.pose_solve.iterations);
   c.NonNegative(q + ".search_ratio", s.pose_solve.search_ratio);

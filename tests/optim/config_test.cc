@@ -317,6 +317,11 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) {
          S(c).pose_solve.at = {0.5, 0.5};
        }},
+      {"stages[1].pose_solve.at",
+       [&](SolverConfig* c) {
+         S(c).pose_solve.at = {0.5};
+         S(c).constant = {ParameterGroup::kRoot};
+       }},
       {"stages[1].pose_solve.rays", [&](SolverConfig* c) { S(c).pose_solve.rays = 0; }},
       {"stages[1].pose_solve.iterations", [&](SolverConfig* c) { S(c).pose_solve.iterations = 0; }},
       {"stages[1].pose_solve.search_ratio",
