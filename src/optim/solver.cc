@@ -30,6 +30,16 @@ namespace banmo {
 namespace {
 
 std::atomic<bool> g_interrupted{false};
+
+// n points drawn uniformly in `bounds` (the soft-argmax's canonical grid).
+Eigen::Matrix3Xd UniformPoints(const Eigen::AlignedBox3d& bounds, int n, std::mt19937* rng) {
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  Eigen::Matrix3Xd points(3, n);
+  for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) points(k, i) = bounds.min()[k] + unit(*rng) * bounds.sizes()[k];
+  }
+  return points;
+}
 void OnSigint(int) { g_interrupted = true; }
 
 // Installs the SIGINT handler for the lifetime of a run.
@@ -209,13 +219,8 @@ void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, So
   sp->ClearMinibatch();
   sp->ScheduleDeltaSkinning(fraction);
   std::vector<Ray> rays = SampleRays(stage, sp->batch(), &c->sampler, &state->rng);
-  Eigen::Matrix3Xd grid(3, stage.sampling.match_grid_points);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  for (int i = 0; i < grid.cols(); ++i) {
-    for (int k = 0; k < 3; ++k) {
-      grid(k, i) = bounds_.min()[k] + unit(state->rng) * bounds_.sizes()[k];
-    }
-  }
+  const Eigen::Matrix3Xd grid =
+      UniformPoints(bounds_, stage.sampling.match_grid_points, &state->rng);
   sp->SetMinibatch(std::move(rays), grid, bounds_, &state->rng);
 
   // ---- The step. ----
@@ -351,8 +356,9 @@ void Solver::RunSchedules(int it, double fraction, const StageRun& run, StagePro
     Grow(it, run, sp, c, result);
   }
   for (double at : stage.pose_solve.at) {
-    if (it == static_cast<int>(std::lround(at * stage.iterations)))
+    if (it == static_cast<int>(std::lround(at * stage.iterations))) {
       SolvePoses(it, run, sp, c, result);
+    }
   }
 }
 
@@ -364,13 +370,7 @@ void Solver::SolvePoses(int it, const StageRun& run, StageProblem* sp, RunContex
   context.batch.weights[LossTerm::kCycle3d] = 0.0;  // no view of the pose
   context.robust = sp->ray_robust();
   context.delta_skinning = sp->batch().delta_skinning();
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  context.match_grid.resize(3, stage.sampling.match_grid_points);
-  for (int i = 0; i < context.match_grid.cols(); ++i) {
-    for (int k = 0; k < 3; ++k) {
-      context.match_grid(k, i) = bounds_.min()[k] + unit(c->state->rng) * bounds_.sizes()[k];
-    }
-  }
+  context.match_grid = UniformPoints(bounds_, stage.sampling.match_grid_points, &c->state->rng);
   PoseSolveReport report =
       SolveAllFramePoses(model_.get(), c->sampler, stage, bounds_, context, &c->state->rng);
   report.stage = run.index;
