@@ -172,7 +172,7 @@ std::string TraceCsvHeader() {
       "wall_seconds,trace_seconds,loss_total";
   for (const std::string& t : TraceLossTerms()) h += ",loss_" + t;
   h += ",params_finite,losses_finite,nonfinite_what,resolution,mesh_vertices,eval_frames,"
-       "chamfer_cm,fscore_1,fscore_2,fscore_5\n";
+       "chamfer_cm,fscore_1,fscore_2,fscore_5,root_rot_mean_deg,root_rot_p90_deg\n";
   return h;
 }
 
@@ -191,7 +191,8 @@ std::string TraceCsvLine(const TraceRow& r) {
   os << ',' << (r.params_finite ? 1 : 0) << ',' << (r.losses_finite ? 1 : 0) << ','
      << r.nonfinite_what << ',' << r.resolution << ',' << r.mesh_vertices << ',' << r.eval_frames
      << ',' << Num(r.chamfer_cm) << ',' << Num(r.fscore[0]) << ',' << Num(r.fscore[1]) << ','
-     << Num(r.fscore[2]) << '\n';
+     << Num(r.fscore[2]) << ',' << Num(r.root_rot_mean_deg) << ',' << Num(r.root_rot_p90_deg)
+     << '\n';
   return os.str();
 }
 

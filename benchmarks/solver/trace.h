@@ -4,6 +4,7 @@
 // harness.
 #pragma once
 
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -58,6 +59,10 @@ struct TraceRow {
   int eval_frames = 0;           // frames evaluated
   double chamfer_cm = 0.0;       // banmo protocol (NaN if the mesh is empty)
   double fscore[3] = {0, 0, 0};  // F@1 %, F@2 %, F@5 % in percent
+  // Root rotation error against the dataset's ground-truth poses, mean and
+  // 90th percentile in degrees (optim/root_pose_error.h; NaN without them).
+  double root_rot_mean_deg = std::numeric_limits<double>::quiet_NaN();
+  double root_rot_p90_deg = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Ray loss terms in CSV column order (loss_<term>).

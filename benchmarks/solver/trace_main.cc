@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "banmo/io/dataset.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/load_options.h"
+#include "banmo/optim/root_pose_error.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
@@ -139,6 +141,10 @@ int Run(int argc, char** argv) {
 
   // Fills the metrics of `row` from the current model.
   auto evaluate = [&](const Model& model, int resolution, bool all_frames, TraceRow* row) {
+    if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(model, dataset)) {
+      row->root_rot_mean_deg = e->mean_deg;
+      row->root_rot_p90_deg = e->p90_deg;
+    }
     row->resolution = resolution;
     row->chamfer_cm = std::numeric_limits<double>::quiet_NaN();
     row->fscore[0] = row->fscore[1] = row->fscore[2] = 0.0;
