@@ -73,8 +73,14 @@ class FramePoseProblem {
     return cost / std::max(1, num_rays());
   }
 
-  // LM from the current value; returns the iterations taken.
-  int Solve(int iterations) {
+  // LM from the current value: iterations taken, cost per ray before and
+  // after (Ceres' summary, so no extra evaluation).
+  struct Result {
+    int iterations = 0;
+    double cost_before = 0.0;
+    double cost_after = 0.0;
+  };
+  Result Solve(int iterations) {
     ceres::Solver::Options so;
     so.minimizer_type = ceres::TRUST_REGION;
     so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
@@ -86,7 +92,9 @@ class FramePoseProblem {
     so.update_state_every_iteration = true;
     ceres::Solver::Summary summary;
     ceres::Solve(so, problem_.get(), &summary);
-    return static_cast<int>(summary.iterations.size()) - 1;
+    const double rays = std::max(1, num_rays());
+    return {static_cast<int>(summary.iterations.size()) - 1, summary.initial_cost / rays,
+            summary.final_cost / rays};
   }
 
  private:
@@ -155,9 +163,10 @@ FramePoseSolve SolveFramePose(Model* model, int video, int frame, std::vector<Ra
   const Pose start = model->RootPose(video, frame);
   FramePoseProblem problem(model, video, frame, std::move(rays), context);
   if (problem.empty()) return out;
-  out.cost_before = problem.Cost();
-  out.iterations = problem.Solve(config.iterations);
-  out.cost_after = problem.Cost();
+  const FramePoseProblem::Result local_solve = problem.Solve(config.iterations);
+  out.cost_before = local_solve.cost_before;
+  out.cost_after = local_solve.cost_after;
+  out.iterations = local_solve.iterations;
   if (search) {
     out.searched = true;
     const Pose local = problem.root();
@@ -177,10 +186,10 @@ FramePoseSolve SolveFramePose(Model* model, int video, int frame, std::vector<Ra
     const int keep = std::min<int>(config.search_keep, static_cast<int>(order.size()));
     for (int k = 0; k < keep; ++k) {
       problem.set_root(candidates[order[k]]);
-      out.iterations += problem.Solve(config.iterations);
-      const double c = problem.Cost();
-      if (c < best_cost) {
-        best_cost = c;
+      const FramePoseProblem::Result refined = problem.Solve(config.iterations);
+      out.iterations += refined.iterations;
+      if (refined.cost_after < best_cost) {
+        best_cost = refined.cost_after;
         best = problem.root();
         out.replaced = true;
       }
