@@ -91,5 +91,68 @@ TEST(RaySampler, ActiveRaysRevisitLargeErrors) {
   EXPECT_EQ(near, 32) << "active rays away from the only pixel with an error";
 }
 
+// The window keeps the most recent errors: a large error recorded once is
+// gone after RaySampler::kErrorWindow newer ones, whatever their size (the
+// cache used to keep the largest errors ever seen, so stage 3 revisited the
+// first batches' pixels).
+TEST(RaySampler, ErrorWindowForgetsOldErrors) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  std::mt19937 rng(4);
+  const std::vector<Ray> first = sampler.Sample(64, 4, sampling, *model, kBounds, &rng);
+  std::vector<double> errors(first.size(), 0.5);
+  errors[3] = 100.0;
+  sampler.RecordErrors(first, errors);
+  ASSERT_EQ(sampler.error_cache().size(), first.size());
+  EXPECT_EQ(sampler.error_cache()[3].error, 100.0);
+  size_t recorded = first.size();
+  while (recorded < RaySampler::kErrorWindow + first.size()) {
+    const std::vector<Ray> later = sampler.Sample(256, 4, sampling, *model, kBounds, &rng);
+    sampler.RecordErrors(later, std::vector<double>(later.size(), 1.0));
+    recorded += later.size();
+    ASSERT_LE(sampler.error_cache().size(), RaySampler::kErrorWindow);
+  }
+  EXPECT_EQ(sampler.error_cache().size(), RaySampler::kErrorWindow);
+  for (const RaySampler::CachedPixel& p : sampler.error_cache()) {
+    EXPECT_EQ(p.error, 1.0) << "an error older than the window is still cached";
+  }
+  // The newest ray is the last entry.
+  const std::vector<Ray> last = sampler.Sample(1, 4, sampling, *model, kBounds, &rng);
+  sampler.RecordErrors(last, {7.0});
+  EXPECT_EQ(sampler.error_cache().back().error, 7.0);
+  EXPECT_EQ(sampler.error_cache().back().x, static_cast<int>(last[0].uv[0]));
+}
+
+// After ClearErrors (a new stage) no ray is active until errors are recorded.
+TEST(RaySampler, ClearErrorsStopsActiveRays) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  std::mt19937 rng(6);
+  const std::vector<Ray> first = sampler.Sample(16, 4, sampling, *model, kBounds, &rng);
+  std::vector<double> errors(first.size(), 0.0);
+  errors[0] = 50.0;
+  sampler.RecordErrors(first, errors);
+  sampler.ClearErrors();
+  EXPECT_TRUE(sampler.error_cache().empty());
+  sampling.active_fraction = 1.0;
+  // Same draws as a sampler that never recorded anything.
+  RaySampler fresh(data);
+  std::mt19937 a(8), b(8);
+  const std::vector<Ray> ra = sampler.Sample(32, 4, sampling, *model, kBounds, &a);
+  const std::vector<Ray> rb = fresh.Sample(32, 4, sampling, *model, kBounds, &b);
+  ASSERT_EQ(ra.size(), rb.size());
+  for (size_t r = 0; r < ra.size(); ++r) {
+    EXPECT_EQ(ra[r].video, rb[r].video);
+    EXPECT_EQ(ra[r].frame, rb[r].frame);
+    EXPECT_EQ(ra[r].uv, rb[r].uv);
+  }
+}
+
 }  // namespace
 }  // namespace banmo
