@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "banmo/extract/extract.h"
 #include "banmo/gltf/export.h"
 #include "banmo/model/model_file.h"
 #include "banmo/util/error.h"
@@ -52,7 +53,8 @@ int RunExport(int argc, char** argv) {
                  "existing file is replaced")
       ->required();
   app.add_option("--resolution", options.extract.grid.resolution,
-                 "Marching-cubes cells along the longest axis of the canonical bounds [-1, 1]^3")
+                 "Marching-cubes cells along the longest axis of the canonical box (the box "
+                 "training sampled, stored with the model; [-1, 1]^3 for a model without one)")
       ->capture_default_str();
   app.add_option("--fps", options.fps, "Animation keys per second (frame t at t/fps s)")
       ->capture_default_str();
@@ -121,6 +123,9 @@ int RunExport(int argc, char** argv) {
                       model->num_videos(), " videos");
     }
   }
+  const Eigen::AlignedBox3d box = ExtractionBounds(*model);
+  options.extract.grid.bounds_min = box.min();
+  options.extract.grid.bounds_max = box.max();
   options.Check();
   int num_frames = 0;
   for (int v = 0; v < model->num_videos(); ++v) {

@@ -3,6 +3,7 @@
 // weights). docs/extract.md.
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -25,7 +26,7 @@ int RunExtract(int argc, char** argv) {
       "frame's camera coordinates (OUT/frames, ready for `banmo eval --pred OUT/frames`), bone "
       "ellipsoids, the mesh coloured by dominant bone and per-vertex skinning weights.",
       "banmo extract"};
-  std::string model_dir, out_dir, frames = "all", bounds = "-1,-1,-1,1,1,1";
+  std::string model_dir, out_dir, frames = "all", bounds = "model";
   ExtractOptions options;
   bool all_components = false;
   int threads = 0;
@@ -44,7 +45,8 @@ int RunExtract(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--bounds", bounds,
                  "Canonical box sampled, in model units (dataset units / scene scale): "
-                 "xmin,ymin,zmin,xmax,ymax,zmax")
+                 "'model' (the box training sampled, stored with the model; [-1, 1]^3 for a "
+                 "model without one) or xmin,ymin,zmin,xmax,ymax,zmax")
       ->capture_default_str();
   app.add_option("--coarse-stride", options.grid.coarse_stride,
                  "Coarse-to-fine sampling stride (1 = dense; exact for SDF-like fields)")
@@ -59,14 +61,19 @@ int RunExtract(int argc, char** argv) {
 
   if (threads < 0) ThrowInputError("--threads: expected >= 0, got ", threads);
   if (threads > 0) SetNumThreads(threads);
-  const Eigen::AlignedBox3d box = tools::ParseBoxOption("--bounds", bounds);
-  options.grid.bounds_min = box.min();
-  options.grid.bounds_max = box.max();
+  std::optional<Eigen::AlignedBox3d> box;
+  if (bounds != "model") {
+    box = tools::ParseBoxOption("--bounds", bounds,
+                                "'model' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
+  }
   options.keep_largest_component = !all_components;
-  options.Check();
 
   Timer total;
   const std::unique_ptr<Model> model = LoadModel(model_dir);
+  if (!box) box = ExtractionBounds(*model);
+  options.grid.bounds_min = box->min();
+  options.grid.bounds_max = box->max();
+  options.Check();
   options.frames = ParseFrameSelection(frames, *model, "--frames");
   int num_frames = 0;
   for (int v = 0; v < model->num_videos(); ++v) {

@@ -15,6 +15,9 @@ void WriteSolveOutputs(const Model& model, const Dataset& dataset, const std::st
   Timer timer;
   ExtractOptions extract;
   extract.grid.resolution = resolution;
+  const Eigen::AlignedBox3d box = ExtractionBounds(model);  // the trained box
+  extract.grid.bounds_min = box.min();
+  extract.grid.bounds_max = box.max();
   const ExtractionSummary s = WriteExtraction(model, extract, out_dir + "/meshes");
   std::printf("meshes: canonical %d vertices / %d faces, %d frame meshes in %s/meshes (%.1f s)\n",
               s.canonical_vertices, s.canonical_faces, s.frames_written, out_dir.c_str(),

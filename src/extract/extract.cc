@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -481,6 +482,15 @@ Eigen::AlignedBox3d CanonicalBoundsFromSurface(const Model& model,
   box = box.intersection(
       Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0), Eigen::Vector3d::Constant(2.0)));
   return box.isEmpty() ? search : box;
+}
+
+Eigen::AlignedBox3d ExtractionBounds(const Model& model) {
+  const std::optional<Eigen::AlignedBox3d>& trained = model.canonical_bounds();
+  if (trained && !trained->isEmpty() && trained->min().allFinite() && trained->max().allFinite() &&
+      (trained->sizes().array() > 0.0).all()) {
+    return *trained;
+  }
+  return Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d::Constant(1.0));
 }
 
 }  // namespace banmo

@@ -94,6 +94,33 @@ TEST_F(ExtractCli, WritesTheLibraryResult) {
   }
 }
 
+// Without --bounds the command samples the box stored with the model (the
+// box training sampled); here it cuts the initial sphere at x = -0.3.
+TEST_F(ExtractCli, SamplesTheModelsTrainedBoxByDefault) {
+  const Eigen::AlignedBox3d trained(Eigen::Vector3d(-0.3, -0.9, -0.9),
+                                    Eigen::Vector3d(0.9, 0.9, 0.9));
+  model_->set_canonical_bounds(trained);
+  CheckpointInfo info;
+  info.config = SolverConfigToYaml(config_);
+  SaveCheckpoint((root_ / "boxed").string(), *model_, info);
+  const fs::path out = root_ / "out_boxed";
+  const RunResult r = RunExtract("--model " + (root_ / "boxed").string() + " --out " +
+                                 out.string() + " --resolution 24 --frames none");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ExtractOptions options;
+  options.grid.resolution = 24;
+  options.grid.bounds_min = trained.min();
+  options.grid.bounds_max = trained.max();
+  const TriangleMesh expected = ExtractCanonicalMesh(*model_, options);
+  const TriangleMesh read = ReadMesh((out / "canonical.ply").string());
+  ASSERT_EQ(read.NumVertices(), expected.NumVertices());
+  EXPECT_LT((read.vertices - expected.vertices).cwiseAbs().maxCoeff(), 1e-12);
+  // The sphere would reach x = -0.5 in the unit cube; the mesh ends at the
+  // cut, within one cell (1.8 / 24 = 0.075) of it.
+  EXPECT_GE(read.vertices.row(0).minCoeff(), -0.3 - 1e-12);
+  EXPECT_LT(read.vertices.row(0).minCoeff(), -0.3 + 0.075);
+}
+
 TEST_F(ExtractCli, BadInputsExitWithTwoAndWriteNothing) {
   const std::string model = " --model " + (root_ / "model").string();
   const fs::path out = root_ / "bad_out";

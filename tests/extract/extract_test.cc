@@ -279,6 +279,23 @@ TEST(SurfaceBounds, CoarseBoundsOfTheSphere) {
   EXPECT_TRUE(none.isEmpty());
 }
 
+// The extraction box is the box training sampled (stored with the model),
+// [-1, 1]^3 only for a model without one; an object reaching beyond the unit
+// cube is no longer cut at its faces.
+TEST(ExtractionBounds, TheTrainedBoxWhenTheModelHasOne) {
+  const auto model = SphereModel();
+  const Eigen::AlignedBox3d unit(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
+  EXPECT_TRUE(ExtractionBounds(*model).isApprox(unit));
+  const Eigen::AlignedBox3d trained(Eigen::Vector3d(-1.4, -0.6, -0.3),
+                                    Eigen::Vector3d(1.2, 0.7, 0.45));
+  model->set_canonical_bounds(trained);
+  EXPECT_TRUE(ExtractionBounds(*model).isApprox(trained));
+  // A degenerate stored box falls back to the unit cube.
+  model->set_canonical_bounds(
+      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(0.5), Eigen::Vector3d(0.5, 1, 1)));
+  EXPECT_TRUE(ExtractionBounds(*model).isApprox(unit));
+}
+
 TEST(ParseFrameSelection, FormsAndErrors) {
   const auto model = SphereModel();
   EXPECT_TRUE(ParseFrameSelection("all", *model).all);

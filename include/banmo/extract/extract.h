@@ -163,4 +163,11 @@ Eigen::AlignedBox3d CanonicalBoundsFromSurface(
     const Eigen::AlignedBox3d& search = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-2.0),
                                                             Eigen::Vector3d::Constant(2.0)));
 
+// The canonical box to extract a model's surface from: the box its training
+// sampled (Model::canonical_bounds, stored in the model file by
+// `banmo solve`) when the model has one, else [-1, 1]^3 (a model of an
+// older format, or an untrained one). Outside the trained box the field was
+// never trained, and the object may reach beyond [-1, 1]^3 (docs/extract.md).
+Eigen::AlignedBox3d ExtractionBounds(const Model& model);
+
 }  // namespace banmo
