@@ -21,16 +21,19 @@ if [[ -z "$printed" ]]; then
   echo "regenerate_golden: losses_test printed no kGolden block" >&2
   exit 1
 fi
-GOLDEN="$printed" python3 - "$test_file" <<'PY'
-import os, re, sys
-path = sys.argv[1]
-text = open(path).read()
-block = re.compile(r"^const std::vector<std::vector<double>> kGolden = \{\n.*?\};\n",
-                   re.S | re.M)
-if len(block.findall(text)) != 1:
-    sys.exit(f"regenerate_golden: expected one kGolden block in {path}")
-text = block.sub(lambda _: os.environ["GOLDEN"] + "\n", text)
-open(path, "w").write(text)
-PY
+blocks="$(grep -c '^const std::vector<std::vector<double>> kGolden = {$' "$test_file" || true)"
+if [[ "$blocks" != 1 ]]; then
+  echo "regenerate_golden: expected one kGolden block in $test_file, found $blocks" >&2
+  exit 1
+fi
+tmp="$(mktemp)"
+# Replace the lines from the kGolden line through its closing "};".
+GOLDEN="$printed" awk '
+  /^const std::vector<std::vector<double>> kGolden = \{$/ { print ENVIRON["GOLDEN"]; skip = 1; next }
+  skip && /\};$/ { skip = 0; next }
+  !skip { print }
+' "$test_file" >"$tmp"
+cat "$tmp" >"$test_file"  # keeps the file's mode
+rm -f "$tmp"
 "${BANMO_CLANG_FORMAT:-clang-format}" -i --style=file "$test_file"
 echo "regenerate_golden: rewrote kGolden in $test_file; review with git diff"
