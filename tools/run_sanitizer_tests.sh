@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds banmo-ceres with AddressSanitizer + UndefinedBehaviorSanitizer into
 # build-asan/ (build type Sanitize: -O1 -g, assertions on; no benchmarks) and
-# runs the unit tests of util, geometry, field, deform, render, model, losses
+# runs the unit tests of util, geometry, field, deform, volume, model, losses
 # and optim under it (BANMO_SANITIZE_TEST_DIRS), the solver's command-line
 # test included. Any sanitizer report fails its test. In this build the
 # losses' numeric-differentiation checks run on one term and ray
@@ -13,7 +13,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${BANMO_ASAN_BUILD_DIR:-$root/build-asan}"
-dirs="${BANMO_SANITIZE_TEST_DIRS:-util;geometry;field;deform;render;model;losses;optim}"
+dirs="${BANMO_SANITIZE_TEST_DIRS:-util;geometry;field;deform;volume;model;losses;optim}"
 cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Sanitize \
   -DBANMO_SANITIZE=address,undefined -DBANMO_WERROR=OFF -DBANMO_BUILD_BENCHMARKS=OFF \
   -DBANMO_ONLY_TEST_DIRS="$dirs" >/dev/null

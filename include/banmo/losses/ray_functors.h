@@ -22,7 +22,7 @@
 #include "banmo/losses/ray.h"
 #include "banmo/losses/rgb_loss.h"
 #include "banmo/losses/silhouette_loss.h"
-#include "banmo/render/volume_rendering.h"
+#include "banmo/volume/volume_rendering.h"
 
 namespace banmo {
 

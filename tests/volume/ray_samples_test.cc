@@ -1,6 +1,6 @@
-// render/ray_samples.h: near/far planes, ray direction length, importance
+// volume/ray_samples.h: near/far planes, ray direction length, importance
 // resampling.
-#include "banmo/render/ray_samples.h"
+#include "banmo/volume/ray_samples.h"
 
 #include <gtest/gtest.h>
 
