@@ -29,123 +29,120 @@ std::string Num(double x) {
   return buf;
 }
 
-int RunRender(int argc, char** argv) {
-  CLI::App app{
-      "Render a model beside its dataset (docs/render.md). For each chosen frame, "
-      "OUT/frames/video<VV>_frame<TTTTT>.png holds five panels side by side: the input RGB, the "
-      "model's RGB by volume rendering (the solver's own ray pipeline), the rendered mask over "
-      "the input mask (white both, red rendered only, blue input only, grey unknown), the "
-      "articulated mesh (Lambert shading, input camera) and the mesh coloured by dominant bone. "
-      "OUT/errors/ holds the rgb, mask and flow error maps (INFERNO colour scale, 0 = black, the "
-      "--*-error-max value = pale yellow, grey = undefined) and OUT/errors.csv the per-frame "
-      "means. Files of the same names in OUT are replaced.",
-      "banmo render"};
+// The command line of banmo render.
+struct RenderArgs {
   std::string model_dir, data_dir, out_dir, frames_text, bounds_text = "auto", importance = "auto";
   int every = 5, samples = 0, threads = 0, scale = 0;
   bool no_labels = false;
   RenderSequenceOptions options;
-  app.add_option("--model", model_dir, "Model checkpoint folder (written by banmo solve)")
-      ->required();
-  app.add_option("--data", data_dir, "Dataset folder the model was trained on (docs/dataset.md)")
-      ->required();
-  app.add_option("--out", out_dir, "Output folder (created)")->required();
-  app.add_option("--frames", frames_text,
-                 "Frames to render: all, or a comma-separated list of V:T, V:T0-T1, V:* (video V, "
-                 "frame T), as banmo extract --frames (default: every --every-th frame)");
-  app.add_option("--every", every, "Without --frames: frames 0, K, 2K, ... of every video")
-      ->capture_default_str();
-  app.add_option("--samples", samples,
-                 "Depth samples per ray (0 = samples_per_ray of the checkpoint's last stage)")
-      ->capture_default_str();
-  app.add_option("--importance", importance,
-                 "Importance resampling of the depth samples as the solver's importance_depth: "
-                 "auto (as the checkpoint's last stage), on, off")
-      ->capture_default_str();
-  app.add_option("--bounds", bounds_text,
-                 "Canonical box for the near/far planes and the mesh: 'auto' (the surface's "
-                 "bounds + 10 %, as the solver refreshes them) or xmin,ymin,zmin,xmax,ymax,zmax")
-      ->capture_default_str();
-  app.add_option("--mesh-resolution", options.mesh_resolution,
-                 "Marching-cubes cells for the mesh panels (0 = no mesh panels)")
-      ->capture_default_str();
-  app.add_option("--flow-gap", options.frame.flow_gap,
-                 "Flow rendered and compared: frame t -> t + gap (t - gap at the end of a video)")
-      ->capture_default_str();
-  app.add_option("--rgb-error-max", options.rgb_error_max,
-                 "Top of the rgb error colour scale (mean |rendered - input| over channels, "
-                 "colours in [0, 1])")
-      ->capture_default_str();
-  app.add_option("--mask-error-max", options.mask_error_max,
-                 "Top of the mask error colour scale (|opacity - mask|)")
-      ->capture_default_str();
-  app.add_option("--flow-error-max", options.flow_error_max,
-                 "Top of the flow error colour scale (endpoint error, pixels)")
-      ->capture_default_str();
-  app.add_option("--scale", scale,
-                 "Integer enlargement of the panels (0 = the smallest making them >= 256 px high)")
-      ->capture_default_str();
-  app.add_flag("--no-labels", no_labels, "No text labels on the panels");
-  app.add_flag("--video", options.write_video,
-               "Also write OUT/sequence.mp4 of the panel images (and OUT/turntable.mp4 with "
-               "--turntable) with OpenCV's VideoWriter");
-  app.add_option("--fps", options.fps, "Frames per second of the MP4")->capture_default_str();
-  app.add_option("--turntable", options.turntable_views,
-                 "Also write N views of the canonical mesh turning about its y axis "
-                 "(OUT/turntable/view<NNN>.png; 0 = none)")
-      ->capture_default_str();
-  app.add_option("--chunk", options.frame.chunk_rays, "Rays per batched evaluation (memory bound)")
-      ->capture_default_str();
-  app.add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+};
 
-  // Everything is validated before OUT is created.
-  if (threads < 0) ThrowInputError("--threads: expected >= 0, got ", threads);
-  if (threads > 0) SetNumThreads(threads);
-  if (every < 1) ThrowInputError("--every: expected >= 1, got ", every);
-  if (samples < 0) ThrowInputError("--samples: expected >= 0, got ", samples);
-  if (scale < 0) ThrowInputError("--scale: expected >= 0, got ", scale);
-  if (importance != "auto" && importance != "on" && importance != "off") {
-    ThrowInputError("--importance: expected auto, on or off, got '", importance, "'");
-  }
-  const bool explicit_bounds = bounds_text != "auto";
-  if (explicit_bounds) {
-    options.frame.canonical_bounds = tools::ParseBoxOption(
-        "--bounds", bounds_text, "'auto' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
-  }
-  if (std::filesystem::exists(out_dir) && !std::filesystem::is_directory(out_dir)) {
-    ThrowInputError("--out ", out_dir, ": exists and is not a folder");
-  }
+void AddRenderOptions(CLI::App* app, RenderArgs* a) {
+  RenderSequenceOptions& options = a->options;
+  app->add_option("--model", a->model_dir, "Model checkpoint folder (written by banmo solve)")
+      ->required();
+  app->add_option("--data", a->data_dir,
+                  "Dataset folder the model was trained on (docs/dataset.md)")
+      ->required();
+  app->add_option("--out", a->out_dir, "Output folder (created)")->required();
+  app->add_option("--frames", a->frames_text,
+                  "Frames to render: all, or a comma-separated list of V:T, V:T0-T1, V:* (video "
+                  "V, frame T), as banmo extract --frames (default: every --every-th frame)");
+  app->add_option("--every", a->every, "Without --frames: frames 0, K, 2K, ... of every video")
+      ->capture_default_str();
+  app->add_option("--samples", a->samples,
+                  "Depth samples per ray (0 = samples_per_ray of the checkpoint's last stage)")
+      ->capture_default_str();
+  app->add_option("--importance", a->importance,
+                  "Importance resampling of the depth samples as the solver's importance_depth: "
+                  "auto (as the checkpoint's last stage), on, off")
+      ->capture_default_str();
+  app->add_option("--bounds", a->bounds_text,
+                  "Canonical box for the near/far planes and the mesh: 'auto' (the surface's "
+                  "bounds + 10 %, as the solver refreshes them) or xmin,ymin,zmin,xmax,ymax,zmax")
+      ->capture_default_str();
+  app->add_option("--mesh-resolution", options.mesh_resolution,
+                  "Marching-cubes cells for the mesh panels (0 = no mesh panels)")
+      ->capture_default_str();
+  app->add_option("--flow-gap", options.frame.flow_gap,
+                  "Flow rendered and compared: frame t -> t + gap (t - gap at the end of a video)")
+      ->capture_default_str();
+  app->add_option("--rgb-error-max", options.rgb_error_max,
+                  "Top of the rgb error colour scale (mean |rendered - input| over channels, "
+                  "colours in [0, 1])")
+      ->capture_default_str();
+  app->add_option("--mask-error-max", options.mask_error_max,
+                  "Top of the mask error colour scale (|opacity - mask|)")
+      ->capture_default_str();
+  app->add_option("--flow-error-max", options.flow_error_max,
+                  "Top of the flow error colour scale (endpoint error, pixels)")
+      ->capture_default_str();
+  app->add_option("--scale", a->scale,
+                  "Integer enlargement of the panels (0 = the smallest making them >= 256 px high)")
+      ->capture_default_str();
+  app->add_flag("--no-labels", a->no_labels, "No text labels on the panels");
+  app->add_flag("--video", options.write_video,
+                "Also write OUT/sequence.mp4 of the panel images (and OUT/turntable.mp4 with "
+                "--turntable) with OpenCV's VideoWriter");
+  app->add_option("--fps", options.fps, "Frames per second of the MP4")->capture_default_str();
+  app->add_option("--turntable", options.turntable_views,
+                  "Also write N views of the canonical mesh turning about its y axis "
+                  "(OUT/turntable/view<NNN>.png; 0 = none)")
+      ->capture_default_str();
+  app->add_option("--chunk", options.frame.chunk_rays, "Rays per batched evaluation (memory bound)")
+      ->capture_default_str();
+  app->add_option("--threads", a->threads, "Worker threads (0 = all cores)")->capture_default_str();
+}
 
-  Timer total;
-  const std::unique_ptr<Model> model = LoadModel(model_dir);
-  // Sampling as the model was trained (the last stage of its solver config).
+// Checks the arguments that need neither the model nor the dataset (before OUT
+// is created); sets the thread count and explicit --bounds.
+void CheckRenderArgs(RenderArgs* a) {
+  if (a->threads < 0) ThrowInputError("--threads: expected >= 0, got ", a->threads);
+  if (a->threads > 0) SetNumThreads(a->threads);
+  if (a->every < 1) ThrowInputError("--every: expected >= 1, got ", a->every);
+  if (a->samples < 0) ThrowInputError("--samples: expected >= 0, got ", a->samples);
+  if (a->scale < 0) ThrowInputError("--scale: expected >= 0, got ", a->scale);
+  if (a->importance != "auto" && a->importance != "on" && a->importance != "off") {
+    ThrowInputError("--importance: expected auto, on or off, got '", a->importance, "'");
+  }
+  if (a->bounds_text != "auto") {
+    a->options.frame.canonical_bounds = tools::ParseBoxOption(
+        "--bounds", a->bounds_text, "'auto' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
+  }
+  if (std::filesystem::exists(a->out_dir) && !std::filesystem::is_directory(a->out_dir)) {
+    ThrowInputError("--out ", a->out_dir, ": exists and is not a folder");
+  }
+}
+
+// Sampling as the model was trained (the last stage of its solver config),
+// unless --samples / --importance say otherwise.
+void SetSampling(const Model& model, const RenderArgs& a, FrameRenderOptions* frame) {
   bool trained_importance = false;
-  if (model->training_sampling()) {
-    const TrainingSampling& trained = *model->training_sampling();
-    options.frame.samples_per_ray = trained.samples_per_ray;
-    options.frame.near_far_margin = trained.near_far_margin;
+  if (model.training_sampling()) {
+    const TrainingSampling& trained = *model.training_sampling();
+    frame->samples_per_ray = trained.samples_per_ray;
+    frame->near_far_margin = trained.near_far_margin;
     trained_importance = trained.importance_depth;
   }
-  if (samples > 0) options.frame.samples_per_ray = samples;
-  options.frame.importance = importance == "on" || (importance == "auto" && trained_importance);
+  if (a.samples > 0) frame->samples_per_ray = a.samples;
+  frame->importance = a.importance == "on" || (a.importance == "auto" && trained_importance);
+}
 
-  LoadOptions load;
-  load.load_features = false;
-  const Dataset dataset = LoadDataset(data_dir, load);
-  CheckDatasetMatchesModel(dataset, *model, data_dir);
-
+// The (video, frame) pairs of --frames, or every --every-th frame of every
+// video.
+std::vector<std::pair<int, int>> SelectFrames(const Model& model, const RenderArgs& a) {
   std::vector<std::pair<int, int>> frames;
-  if (frames_text.empty()) {
-    for (int v = 0; v < model->num_videos(); ++v) {
-      for (int t = 0; t < static_cast<int>(model->video(v).frames.size()); t += every) {
+  if (a.frames_text.empty()) {
+    for (int v = 0; v < model.num_videos(); ++v) {
+      for (int t = 0; t < static_cast<int>(model.video(v).frames.size()); t += a.every) {
         frames.emplace_back(v, t);
       }
     }
   } else {
-    const FrameSelection selection = ParseFrameSelection(frames_text, *model, "--frames");
+    const FrameSelection selection = ParseFrameSelection(a.frames_text, model, "--frames");
     if (selection.all) {
-      for (int v = 0; v < model->num_videos(); ++v) {
-        for (int t = 0; t < static_cast<int>(model->video(v).frames.size()); ++t) {
+      for (int v = 0; v < model.num_videos(); ++v) {
+        for (int t = 0; t < static_cast<int>(model.video(v).frames.size()); ++t) {
           frames.emplace_back(v, t);
         }
       }
@@ -153,41 +150,44 @@ int RunRender(int argc, char** argv) {
       frames = selection.frames;
     }
   }
-  if (frames.empty()) ThrowInputError("--frames '", frames_text, "': selects no frame");
+  if (frames.empty()) ThrowInputError("--frames '", a.frames_text, "': selects no frame");
+  return frames;
+}
 
-  if (scale == 0) {
-    int height = 1;
-    for (int v = 0; v < model->num_videos(); ++v) {
-      height = std::max(height, model->video(v).camera.height);
-    }
-    scale = std::max(1, (256 + height - 1) / height);
+// --scale 0: the smallest integer making the panels >= 256 px high.
+int DefaultScale(const Model& model) {
+  int height = 1;
+  for (int v = 0; v < model.num_videos(); ++v) {
+    height = std::max(height, model.video(v).camera.height);
   }
-  options.scale = scale;
-  options.labels = !no_labels;
-  options.Check();
+  return std::max(1, (256 + height - 1) / height);
+}
 
-  if (!explicit_bounds) options.frame.canonical_bounds = CanonicalBoundsFromSurface(*model);
+void PrintPlan(const std::string& model_dir, const Model& model, size_t num_frames,
+               const RenderSequenceOptions& options, bool explicit_bounds) {
   const Eigen::AlignedBox3d& b = options.frame.canonical_bounds;
   std::printf(
       "model %s: %d videos, %d bones; %zu frames to render, %d samples per ray%s, canonical "
       "bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
-      model_dir.c_str(), model->num_videos(), model->num_bones(), frames.size(),
+      model_dir.c_str(), model.num_videos(), model.num_bones(), num_frames,
       options.frame.samples_per_ray, options.frame.importance ? " (+ importance resampling)" : "",
       b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z(),
       explicit_bounds ? "" : " (auto)");
   std::fflush(stdout);
+}
 
-  const SequenceSummary summary = RenderSequence(
-      *model, dataset, frames, options, out_dir, [&](const FrameReport& r, int done, int all) {
-        std::printf(
-            "  [%d/%d] video %d frame %d: rgb %s  mask %s  IoU %s  flow %s px  (volume %.2f s, "
-            "frame %.2f s)\n",
-            done, all, r.video, r.frame, Num(r.errors.rgb).c_str(), Num(r.errors.mask).c_str(),
-            Num(r.errors.mask_iou).c_str(), Num(r.errors.flow).c_str(), r.volume_seconds,
-            r.total_seconds);
-        std::fflush(stdout);
-      });
+void PrintFrameReport(const FrameReport& r, int done, int all) {
+  std::printf(
+      "  [%d/%d] video %d frame %d: rgb %s  mask %s  IoU %s  flow %s px  (volume %.2f s, "
+      "frame %.2f s)\n",
+      done, all, r.video, r.frame, Num(r.errors.rgb).c_str(), Num(r.errors.mask).c_str(),
+      Num(r.errors.mask_iou).c_str(), Num(r.errors.flow).c_str(), r.volume_seconds,
+      r.total_seconds);
+  std::fflush(stdout);
+}
 
+void PrintSummary(const SequenceSummary& summary, const RenderSequenceOptions& options,
+                  const std::string& out_dir, double total_seconds) {
   double volume = 0.0, frame_total = 0.0;
   for (const FrameReport& r : summary.frames) {
     volume += r.volume_seconds;
@@ -218,7 +218,45 @@ int RunRender(int argc, char** argv) {
       "wrote %zu frames to %s/frames, error maps to %s/errors, means to %s/errors.csv; "
       "%.2f s per frame (volume rendering %.2f s); total %.1f s\n",
       summary.frames.size(), out_dir.c_str(), out_dir.c_str(), out_dir.c_str(), frame_total / n,
-      volume / n, total.Seconds());
+      volume / n, total_seconds);
+}
+
+int RunRender(int argc, char** argv) {
+  CLI::App app{
+      "Render a model beside its dataset (docs/render.md). For each chosen frame, "
+      "OUT/frames/video<VV>_frame<TTTTT>.png holds five panels side by side: the input RGB, the "
+      "model's RGB by volume rendering (the solver's own ray pipeline), the rendered mask over "
+      "the input mask (white both, red rendered only, blue input only, grey unknown), the "
+      "articulated mesh (Lambert shading, input camera) and the mesh coloured by dominant bone. "
+      "OUT/errors/ holds the rgb, mask and flow error maps (INFERNO colour scale, 0 = black, the "
+      "--*-error-max value = pale yellow, grey = undefined) and OUT/errors.csv the per-frame "
+      "means. Files of the same names in OUT are replaced.",
+      "banmo render"};
+  RenderArgs a;
+  AddRenderOptions(&app, &a);
+  CLI11_PARSE(app, argc, argv);
+  // Everything is validated before OUT is created.
+  CheckRenderArgs(&a);
+  RenderSequenceOptions& options = a.options;
+  const bool explicit_bounds = a.bounds_text != "auto";
+
+  Timer total;
+  const std::unique_ptr<Model> model = LoadModel(a.model_dir);
+  SetSampling(*model, a, &options.frame);
+  LoadOptions load;
+  load.load_features = false;
+  const Dataset dataset = LoadDataset(a.data_dir, load);
+  CheckDatasetMatchesModel(dataset, *model, a.data_dir);
+  const std::vector<std::pair<int, int>> frames = SelectFrames(*model, a);
+  options.scale = a.scale == 0 ? DefaultScale(*model) : a.scale;
+  options.labels = !a.no_labels;
+  options.Check();
+
+  if (!explicit_bounds) options.frame.canonical_bounds = CanonicalBoundsFromSurface(*model);
+  PrintPlan(a.model_dir, *model, frames.size(), options, explicit_bounds);
+  const SequenceSummary summary =
+      RenderSequence(*model, dataset, frames, options, a.out_dir, PrintFrameReport);
+  PrintSummary(summary, options, a.out_dir, total.Seconds());
   return 0;
 }
 

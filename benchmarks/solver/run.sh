@@ -59,8 +59,8 @@ trace="$build/bin/banmo_trace"
 # Mode settings: base config, its budget overrides and the trace schedule.
 if [[ $mode == quick ]]; then
   base="$root/problems/tiny.yaml"
-  budget=(--set "stages[0].iterations=40" --set "stages[1].iterations=5"
-          --set "stages[2].iterations=15")
+  budget=(--set "stages[0].batches=40" --set "stages[1].batches=5"
+          --set "stages[2].batches=15")
   schedule=(--every-batches 15 --resolution 40 --frame-step 10)
   compare_scene=quad_q
 else

@@ -18,7 +18,7 @@ namespace banmo::bench {
 // result with ParseSolverConfig (so every key is checked as in a config
 // file). Paths are dot-separated keys; a list element is key[i], and key[*]
 // applies to every element of the list (e.g. "stages[*].step_rule=lm",
-// "model.num_bones=4", "stages[0].iterations=200",
+// "model.num_bones=4", "stages[0].batches=200",
 // "stages[*].sampling.flow_gaps=[8]"). Missing maps on the way are created;
 // an unknown key is then reported by the config parser. The value is parsed
 // as YAML (numbers, booleans, lists, maps). Throws InputError naming

@@ -234,7 +234,7 @@ int Run(int argc, char** argv) {
       TraceRow row = base_row(finite ? "trace" : "nonfinite");
       row.stage = p.stage;
       row.stage_name = p.stage_name;
-      row.iteration = p.iteration;
+      row.iteration = p.batch;
       row.total_batches = p.total_batches;
       row.solve_seconds = p.solve_seconds;
       row.losses = p.losses;
@@ -247,7 +247,7 @@ int Run(int argc, char** argv) {
       last_traced = true;
       if (!finite) {
         std::printf("trace: NON-FINITE at stage %d (%s) batch %d (total %d): %s\n", p.stage,
-                    p.stage_name.c_str(), p.iteration, p.total_batches, row.nonfinite_what.c_str());
+                    p.stage_name.c_str(), p.batch, p.total_batches, row.nonfinite_what.c_str());
       }
       while (at_time && next_time <= p.solve_seconds) next_time += o.every_seconds;
     }
@@ -272,7 +272,7 @@ int Run(int argc, char** argv) {
     TraceRow row = base_row("trace");
     row.stage = last.stage;
     row.stage_name = last.stage_name;
-    row.iteration = last.iteration;
+    row.iteration = last.batch;
     row.total_batches = last.total_batches;
     row.solve_seconds = last.solve_seconds;
     row.losses = last.losses;
@@ -288,7 +288,7 @@ int Run(int argc, char** argv) {
     TraceRow row = base_row("final");
     row.stage = last.stage;
     row.stage_name = last.stage_name;
-    row.iteration = last.iteration;
+    row.iteration = last.batch;
     row.total_batches = last.total_batches;
     row.solve_seconds = last.solve_seconds;
     row.losses = last.losses;

@@ -23,16 +23,16 @@ defaults:
   batch_rays: 128
 stages:
   - name: a
-    iterations: 10
+    batches: 10
   - name: b
-    iterations: 20
+    batches: 20
     step_rule: lm
 )";
 
 TEST(ConfigOverrides, SetsScalarsListsAndEveryStage) {
   const SolverConfig c = ParseConfigWithOverrides(
       kBase,
-      {"model.num_bones=16", "stages[*].step_rule=alternate", "stages[1].iterations=5",
+      {"model.num_bones=16", "stages[*].step_rule=alternate", "stages[1].batches=5",
        "stages[*].sampling.flow_gaps=[8]", "stages[*].lm.linear_solver=iterative_schur",
        "model.field.sdf_width=24", "defaults.samples_per_ray=12"},
       "base.yaml");
@@ -46,8 +46,8 @@ TEST(ConfigOverrides, SetsScalarsListsAndEveryStage) {
     EXPECT_EQ(s.batch_rays, 128);      // untouched defaults: still merged
     EXPECT_EQ(s.samples_per_ray, 12);  // from the overridden defaults
   }
-  EXPECT_EQ(c.stages[0].iterations, 10);
-  EXPECT_EQ(c.stages[1].iterations, 5);
+  EXPECT_EQ(c.stages[0].batches, 10);
+  EXPECT_EQ(c.stages[1].batches, 5);
 }
 
 TEST(ConfigOverrides, NoOverridesIsTheConfigItself) {
@@ -58,13 +58,13 @@ TEST(ConfigOverrides, NoOverridesIsTheConfigItself) {
 
 TEST(ConfigOverrides, BadOverridesAreInputErrors) {
   auto parse = [](const std::string& o) { ParseConfigWithOverrides(kBase, {o}, "base.yaml"); };
-  EXPECT_THROW(parse("model.num_bones"), InputError);         // no '='
-  EXPECT_THROW(parse("stages[2].iterations=3"), InputError);  // out of range
-  EXPECT_THROW(parse("model[0].x=3"), InputError);            // not a list
-  EXPECT_THROW(parse("stages[x].iterations=3"), InputError);  // bad index
-  EXPECT_THROW(parse("model.num_bonez=3"), InputError);       // unknown key (config parser)
-  EXPECT_THROW(parse("model.num_bones=abc"), InputError);     // wrong type (config parser)
-  EXPECT_THROW(parse("model.num_bones.x=3"), InputError);     // below a scalar
+  EXPECT_THROW(parse("model.num_bones"), InputError);      // no '='
+  EXPECT_THROW(parse("stages[2].batches=3"), InputError);  // out of range
+  EXPECT_THROW(parse("model[0].x=3"), InputError);         // not a list
+  EXPECT_THROW(parse("stages[x].batches=3"), InputError);  // bad index
+  EXPECT_THROW(parse("model.num_bonez=3"), InputError);    // unknown key (config parser)
+  EXPECT_THROW(parse("model.num_bones=abc"), InputError);  // wrong type (config parser)
+  EXPECT_THROW(parse("model.num_bones.x=3"), InputError);  // below a scalar
   try {
     parse("model.num_bonez=3");
   } catch (const InputError& e) {
@@ -144,7 +144,7 @@ std::string ReadBase(const std::string& mode) {
 // run.sh's quick budget overrides, before the configuration's own.
 std::vector<std::string> BudgetOverrides(const std::string& mode) {
   if (mode == "full") return {};
-  return {"stages[0].iterations=40", "stages[1].iterations=5", "stages[2].iterations=15"};
+  return {"stages[0].batches=40", "stages[1].batches=5", "stages[2].batches=15"};
 }
 
 TEST(HarnessTables, EveryConfigurationParsesOnItsBase) {

@@ -161,6 +161,279 @@ Eigen::VectorXd EvaluateField(const FieldBatchFunction& field, const Eigen::Matr
   return out;
 }
 
+// The fine grid of one MarchingCubes call: cx x cy x cz cells, nodes
+// (i, j, k) with i in 0..cx etc., a z-level holding nx1 * ny1 nodes.
+struct FineGrid {
+  FineGrid(const GridShape& grid_shape, const GridOptions& options)
+      : shape(grid_shape),
+        origin(options.bounds_min),
+        cx(shape.cells.x()),
+        cy(shape.cells.y()),
+        cz(shape.cells.z()),
+        nx1(cx + 1),
+        ny1(cy + 1),
+        pad(options.close_at_bounds) {}
+
+  Eigen::Vector3d NodePosition(int i, int j, int k) const {
+    return Eigen::Vector3d(origin.x() + i * shape.spacing.x(), origin.y() + j * shape.spacing.y(),
+                           origin.z() + k * shape.spacing.z());
+  }
+  // True for the boundary nodes that close_at_bounds sets outside.
+  bool Padded(int i, int j, int k) const {
+    return pad && (i == 0 || j == 0 || k == 0 || i == cx || j == cy || k == cz);
+  }
+
+  GridShape shape;
+  Eigen::Vector3d origin;
+  int cx, cy, cz, nx1, ny1;
+  bool pad;
+};
+
+// The coarse pass (coarse_stride s > 1): the field at every s-th node per
+// axis (plus the last node), and the blocks of the coarse grid that may hold
+// the level set (the band). Fine nodes outside the band take the coarse
+// values' trilinear interpolation: only their sign matters, and all corners
+// of their blocks share it.
+class CoarseBand {
+ public:
+  CoarseBand(const FineGrid& grid, int stride) : grid_(grid), s_(stride) {
+    for (int a = 0; a < 3; ++a) {
+      for (int i = 0; i < grid.shape.cells[a]; i += s_) nodes_[a].push_back(i);
+      nodes_[a].push_back(grid.shape.cells[a]);
+    }
+    ncx_ = static_cast<int>(nodes_[0].size());
+    ncy_ = static_cast<int>(nodes_[1].size());
+    ncz_ = static_cast<int>(nodes_[2].size());
+  }
+
+  // Evaluates the field at the coarse nodes and marks the band blocks.
+  void Evaluate(const FieldBatchFunction& field, const GridOptions& options, double outside_value) {
+    const double iso = options.iso_level;
+    coarse_.assign(static_cast<size_t>(ncx_) * ncy_ * ncz_, outside_value);
+    std::vector<std::array<int, 3>> query;
+    for (int c = 0; c < ncz_; ++c) {
+      for (int b = 0; b < ncy_; ++b) {
+        for (int a = 0; a < ncx_; ++a) {
+          if (!grid_.Padded(nodes_[0][a], nodes_[1][b], nodes_[2][c])) query.push_back({a, b, c});
+        }
+      }
+    }
+    Eigen::Matrix3Xd coarse_points(3, static_cast<Eigen::Index>(query.size()));
+    for (size_t q = 0; q < query.size(); ++q) {
+      coarse_points.col(q) = grid_.NodePosition(nodes_[0][query[q][0]], nodes_[1][query[q][1]],
+                                                nodes_[2][query[q][2]]);
+    }
+    const Eigen::VectorXd coarse_values =
+        EvaluateField(field, coarse_points, options.max_batch_points);
+    for (size_t q = 0; q < query.size(); ++q) {
+      coarse_[(query[q][2] * ncy_ + query[q][1]) * ncx_ + query[q][0]] = coarse_values[q];
+    }
+    const double diagonal = s_ * grid_.shape.spacing.norm();
+    const double margin = options.band * diagonal;
+    band_.assign(static_cast<size_t>(ncx_ - 1) * (ncy_ - 1) * (ncz_ - 1), 0);
+    for (int c = 0; c + 1 < ncz_; ++c) {
+      for (int b = 0; b + 1 < ncy_; ++b) {
+        for (int a = 0; a + 1 < ncx_; ++a) {
+          int num_inside = 0;
+          double min_distance = std::numeric_limits<double>::infinity();
+          for (int corner = 0; corner < 8; ++corner) {
+            const int ca = a + (corner & 1), cb = b + ((corner >> 1) & 1), cc = c + (corner >> 2);
+            const double f = At(ca, cb, cc);
+            num_inside += f < iso ? 1 : 0;
+            // Padded corners hold a constant, not the field: only their sign
+            // counts (as for the fine padded nodes).
+            if (!grid_.Padded(nodes_[0][ca], nodes_[1][cb], nodes_[2][cc])) {
+              min_distance = std::min(min_distance, std::abs(f - iso));
+            }
+          }
+          band_[(c * (ncy_ - 1) + b) * (ncx_ - 1) + a] =
+              (num_inside > 0 && num_inside < 8) || min_distance < margin;
+        }
+      }
+    }
+  }
+
+  // True when fine node (i, j, k) lies in some band block.
+  bool InBand(int i, int j, int k) const {
+    const int bi = BlockOf(0, i), bj = BlockOf(1, j), bk = BlockOf(2, k);
+    for (int dk = (k == nodes_[2][bk] && bk > 0) ? -1 : 0; dk <= 0; ++dk) {
+      for (int dj = (j == nodes_[1][bj] && bj > 0) ? -1 : 0; dj <= 0; ++dj) {
+        for (int di = (i == nodes_[0][bi] && bi > 0) ? -1 : 0; di <= 0; ++di) {
+          if (band_[((bk + dk) * (ncy_ - 1) + bj + dj) * (ncx_ - 1) + bi + di]) return true;
+        }
+      }
+    }
+    return false;
+  }
+
+  // Trilinear interpolation of the coarse values at fine node (i, j, k).
+  double Interpolate(int i, int j, int k) const {
+    const int bi = BlockOf(0, i), bj = BlockOf(1, j), bk = BlockOf(2, k);
+    const double u = double(i - nodes_[0][bi]) / (nodes_[0][bi + 1] - nodes_[0][bi]);
+    const double v = double(j - nodes_[1][bj]) / (nodes_[1][bj + 1] - nodes_[1][bj]);
+    const double w = double(k - nodes_[2][bk]) / (nodes_[2][bk + 1] - nodes_[2][bk]);
+    double f = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const int x = corner & 1, y = (corner >> 1) & 1, z = corner >> 2;
+      f += (x ? u : 1 - u) * (y ? v : 1 - v) * (z ? w : 1 - w) * At(bi + x, bj + y, bk + z);
+    }
+    return f;
+  }
+
+  int64_t num_evaluated() const { return static_cast<int64_t>(coarse_.size()); }
+
+ private:
+  // Block index along axis a of fine node i: the block starting at or before
+  // it (the last block for the last node).
+  int BlockOf(int a, int i) const {
+    const int nb = static_cast<int>(nodes_[a].size()) - 1;
+    return std::min(i / s_, nb - 1);
+  }
+  double At(int a, int b, int c) const { return coarse_[(c * ncy_ + b) * ncx_ + a]; }
+
+  const FineGrid& grid_;
+  int s_;
+  std::array<std::vector<int>, 3> nodes_;  // fine indices of the coarse nodes per axis
+  int ncx_ = 0, ncy_ = 0, ncz_ = 0;
+  std::vector<double> coarse_;
+  std::vector<char> band_;  // per block (ncx-1)(ncy-1)(ncz-1)
+};
+
+// The sweep through the z-levels of the fine grid: field values per level,
+// one vertex per cut grid edge, triangles per cell from the case table.
+class LevelSweep {
+ public:
+  LevelSweep(const FineGrid& grid, const CoarseBand& coarse, const FieldBatchFunction& field,
+             const GridOptions& options, double outside_value)
+      : grid_(grid),
+        coarse_(coarse),
+        field_(field),
+        options_(options),
+        iso_(options.iso_level),
+        outside_value_(outside_value) {}
+
+  // Field values of z-level k (nx1 * ny1, index j * nx1 + i).
+  void EvaluateLevel(int k, std::vector<double>* level) {
+    const int nx1 = grid_.nx1, ny1 = grid_.ny1;
+    level->assign(static_cast<size_t>(nx1) * ny1, outside_value_);
+    query_index_.clear();
+    for (int j = 0; j < ny1; ++j) {
+      for (int i = 0; i < nx1; ++i) {
+        if (grid_.Padded(i, j, k)) continue;
+        if (options_.coarse_stride > 1 && !coarse_.InBand(i, j, k)) {
+          (*level)[j * nx1 + i] = coarse_.Interpolate(i, j, k);
+          continue;
+        }
+        query_index_.push_back(j * nx1 + i);
+      }
+    }
+    points_.resize(3, static_cast<Eigen::Index>(query_index_.size()));
+    for (size_t q = 0; q < query_index_.size(); ++q) {
+      points_.col(q) = grid_.NodePosition(query_index_[q] % nx1, query_index_[q] / nx1, k);
+    }
+    const Eigen::VectorXd values = EvaluateField(field_, points_, options_.max_batch_points);
+    for (size_t q = 0; q < query_index_.size(); ++q) (*level)[query_index_[q]] = values[q];
+    num_evaluated_ += static_cast<int64_t>(query_index_.size());
+  }
+
+  // The vertices on the cut x- and y-edges of z-level k (values f).
+  void CutLevelEdges(int k, const std::vector<double>& f, LevelEdges* edges) {
+    const int cx = grid_.cx, cy = grid_.cy, nx1 = grid_.nx1, ny1 = grid_.ny1;
+    edges->x.assign(static_cast<size_t>(cx) * ny1, -1);
+    edges->y.assign(static_cast<size_t>(nx1) * cy, -1);
+    for (int j = 0; j < ny1; ++j) {
+      for (int i = 0; i < cx; ++i) {
+        const double fa = f[j * nx1 + i], fb = f[j * nx1 + i + 1];
+        if ((fa < iso_) != (fb < iso_)) {
+          edges->x[j * cx + i] =
+              AddVertex(grid_.NodePosition(i, j, k), fa, grid_.NodePosition(i + 1, j, k), fb);
+        }
+      }
+    }
+    for (int j = 0; j < cy; ++j) {
+      for (int i = 0; i < nx1; ++i) {
+        const double fa = f[j * nx1 + i], fb = f[(j + 1) * nx1 + i];
+        if ((fa < iso_) != (fb < iso_)) {
+          edges->y[j * nx1 + i] =
+              AddVertex(grid_.NodePosition(i, j, k), fa, grid_.NodePosition(i, j + 1, k), fb);
+        }
+      }
+    }
+  }
+
+  // The vertices on the cut z-edges between z-levels k (lo) and k + 1 (hi).
+  void CutZEdges(int k, const std::vector<double>& lo, const std::vector<double>& hi,
+                 std::vector<int>* z_edges) {
+    const int nx1 = grid_.nx1, ny1 = grid_.ny1;
+    z_edges->assign(static_cast<size_t>(nx1) * ny1, -1);
+    for (int j = 0; j < ny1; ++j) {
+      for (int i = 0; i < nx1; ++i) {
+        const double fa = lo[j * nx1 + i], fb = hi[j * nx1 + i];
+        if ((fa < iso_) != (fb < iso_)) {
+          (*z_edges)[j * nx1 + i] =
+              AddVertex(grid_.NodePosition(i, j, k), fa, grid_.NodePosition(i, j, k + 1), fb);
+        }
+      }
+    }
+  }
+
+  // The triangles of cell (i, j) between the levels lo and hi.
+  void AddCellTriangles(const CaseTable& table, int i, int j, const std::vector<double>& lo,
+                        const std::vector<double>& hi, const LevelEdges& lo_edges,
+                        const LevelEdges& hi_edges, const std::vector<int>& z_edges) {
+    const int cx = grid_.cx, nx1 = grid_.nx1;
+    const std::vector<double>* level_values[2] = {&lo, &hi};
+    const LevelEdges* level_edge_ids[2] = {&lo_edges, &hi_edges};
+    int config = 0;
+    for (int c = 0; c < 8; ++c) {
+      const int x = c & 1, y = (c >> 1) & 1, z = c >> 2;
+      if ((*level_values[z])[(j + y) * nx1 + i + x] < iso_) config |= 1 << c;
+    }
+    if (config == 0 || config == 255) return;
+    auto vertex_of_edge = [&](int edge) {
+      const int axis = edge / 4, b0 = edge & 1, b1 = (edge >> 1) & 1;
+      if (axis == 0) return level_edge_ids[b1]->x[(j + b0) * cx + i];
+      if (axis == 1) return level_edge_ids[b1]->y[j * nx1 + i + b0];
+      return z_edges[(j + b1) * nx1 + i + b0];
+    };
+    for (const auto& tri : table.triangles[config]) {
+      Eigen::Vector3i face(vertex_of_edge(tri[0]), vertex_of_edge(tri[1]), vertex_of_edge(tri[2]));
+      DCHECK((face.array() >= 0).all());
+      faces_.push_back(face);
+    }
+  }
+
+  int64_t num_evaluated() const { return num_evaluated_; }
+
+  TriangleMesh Mesh() const {
+    TriangleMesh mesh;
+    mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices_.size()));
+    for (size_t v = 0; v < vertices_.size(); ++v) mesh.vertices.col(v) = vertices_[v];
+    mesh.faces.resize(3, static_cast<Eigen::Index>(faces_.size()));
+    for (size_t f = 0; f < faces_.size(); ++f) mesh.faces.col(f) = faces_[f];
+    return mesh;
+  }
+
+ private:
+  int AddVertex(const Eigen::Vector3d& pa, double fa, const Eigen::Vector3d& pb, double fb) {
+    // Cut edge: exactly one of fa, fb is < iso, so fb - fa != 0.
+    const double t = std::clamp((iso_ - fa) / (fb - fa), 0.0, 1.0);
+    vertices_.push_back(pa + t * (pb - pa));
+    return static_cast<int>(vertices_.size()) - 1;
+  }
+
+  const FineGrid& grid_;
+  const CoarseBand& coarse_;
+  const FieldBatchFunction& field_;
+  const GridOptions& options_;
+  const double iso_, outside_value_;
+  int64_t num_evaluated_ = 0;
+  std::vector<int> query_index_;
+  Eigen::Matrix3Xd points_;
+  std::vector<Eigen::Vector3d> vertices_;
+  std::vector<Eigen::Vector3i> faces_;
+};
+
 }  // namespace
 
 void GridOptions::Check(const char* prefix) const {
@@ -200,218 +473,24 @@ TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& o
                            MarchingCubesStats* stats) {
   options.Check();
   const CaseTable& table = GetCaseTable();
-  const GridShape shape = ComputeGridShape(options);
-  const int cx = shape.cells.x(), cy = shape.cells.y(), cz = shape.cells.z();
-  const int nx1 = cx + 1, ny1 = cy + 1;
-  const double iso = options.iso_level;
-  const double outside_value = iso + shape.spacing.minCoeff();
-  const Eigen::Vector3d& origin = options.bounds_min;
-  int64_t num_evaluated = 0;
-  auto node_position = [&](int i, int j, int k) {
-    return Eigen::Vector3d(origin.x() + i * shape.spacing.x(), origin.y() + j * shape.spacing.y(),
-                           origin.z() + k * shape.spacing.z());
-  };
-
-  const bool pad = options.close_at_bounds;
-  auto padded = [&](int i, int j, int k) {
-    return pad && (i == 0 || j == 0 || k == 0 || i == cx || j == cy || k == cz);
-  };
-
-  // Coarse pass (coarse_stride > 1): the field at every coarse_stride-th
-  // node per axis (plus the last node), and the blocks of the coarse grid
-  // that may hold the level set.
-  const int s = options.coarse_stride;
-  std::array<std::vector<int>, 3> coarse_nodes;  // fine indices of the coarse nodes per axis
-  for (int a = 0; a < 3; ++a) {
-    for (int i = 0; i < shape.cells[a]; i += s) coarse_nodes[a].push_back(i);
-    coarse_nodes[a].push_back(shape.cells[a]);
-  }
-  const int ncx = static_cast<int>(coarse_nodes[0].size());
-  const int ncy = static_cast<int>(coarse_nodes[1].size());
-  const int ncz = static_cast<int>(coarse_nodes[2].size());
-  std::vector<double> coarse;
-  std::vector<char> band;  // per block (ncx-1)(ncy-1)(ncz-1)
-  auto coarse_at = [&](int a, int b, int c) { return coarse[(c * ncy + b) * ncx + a]; };
-  if (s > 1) {
-    coarse.assign(static_cast<size_t>(ncx) * ncy * ncz, outside_value);
-    std::vector<std::array<int, 3>> query;
-    for (int c = 0; c < ncz; ++c) {
-      for (int b = 0; b < ncy; ++b) {
-        for (int a = 0; a < ncx; ++a) {
-          if (!padded(coarse_nodes[0][a], coarse_nodes[1][b], coarse_nodes[2][c])) {
-            query.push_back({a, b, c});
-          }
-        }
-      }
-    }
-    Eigen::Matrix3Xd coarse_points(3, static_cast<Eigen::Index>(query.size()));
-    for (size_t q = 0; q < query.size(); ++q) {
-      coarse_points.col(q) = node_position(
-          coarse_nodes[0][query[q][0]], coarse_nodes[1][query[q][1]], coarse_nodes[2][query[q][2]]);
-    }
-    const Eigen::VectorXd coarse_values =
-        EvaluateField(field, coarse_points, options.max_batch_points);
-    for (size_t q = 0; q < query.size(); ++q) {
-      coarse[(query[q][2] * ncy + query[q][1]) * ncx + query[q][0]] = coarse_values[q];
-    }
-    const double diagonal = s * shape.spacing.norm();
-    const double margin = options.band * diagonal;
-    band.assign(static_cast<size_t>(ncx - 1) * (ncy - 1) * (ncz - 1), 0);
-    for (int c = 0; c + 1 < ncz; ++c) {
-      for (int b = 0; b + 1 < ncy; ++b) {
-        for (int a = 0; a + 1 < ncx; ++a) {
-          int num_inside = 0;
-          double min_distance = std::numeric_limits<double>::infinity();
-          for (int corner = 0; corner < 8; ++corner) {
-            const int ca = a + (corner & 1), cb = b + ((corner >> 1) & 1), cc = c + (corner >> 2);
-            const double f = coarse_at(ca, cb, cc);
-            num_inside += f < iso ? 1 : 0;
-            // Padded corners hold a constant, not the field: only their sign
-            // counts (as for the fine padded nodes).
-            if (!padded(coarse_nodes[0][ca], coarse_nodes[1][cb], coarse_nodes[2][cc])) {
-              min_distance = std::min(min_distance, std::abs(f - iso));
-            }
-          }
-          band[(c * (ncy - 1) + b) * (ncx - 1) + a] =
-              (num_inside > 0 && num_inside < 8) || min_distance < margin;
-        }
-      }
-    }
-  }
-  // Block index along axis a of fine node i: the block starting at or
-  // before it (the last block for the last node), and whether i is also the
-  // end of the previous block.
-  auto block_of = [&](int a, int i) {
-    const int nb = static_cast<int>(coarse_nodes[a].size()) - 1;
-    return std::min(i / s, nb - 1);
-  };
-  // True when fine node (i, j, k) lies in some band block.
-  auto in_band = [&](int i, int j, int k) {
-    const int bi = block_of(0, i), bj = block_of(1, j), bk = block_of(2, k);
-    for (int dk = (k == coarse_nodes[2][bk] && bk > 0) ? -1 : 0; dk <= 0; ++dk) {
-      for (int dj = (j == coarse_nodes[1][bj] && bj > 0) ? -1 : 0; dj <= 0; ++dj) {
-        for (int di = (i == coarse_nodes[0][bi] && bi > 0) ? -1 : 0; di <= 0; ++di) {
-          if (band[((bk + dk) * (ncy - 1) + bj + dj) * (ncx - 1) + bi + di]) return true;
-        }
-      }
-    }
-    return false;
-  };
-  // Trilinear interpolation of the coarse values (for nodes outside the band
-  // only the sign matters; all corners of their blocks share it).
-  auto coarse_interpolate = [&](int i, int j, int k) {
-    const int bi = block_of(0, i), bj = block_of(1, j), bk = block_of(2, k);
-    const double u =
-        double(i - coarse_nodes[0][bi]) / (coarse_nodes[0][bi + 1] - coarse_nodes[0][bi]);
-    const double v =
-        double(j - coarse_nodes[1][bj]) / (coarse_nodes[1][bj + 1] - coarse_nodes[1][bj]);
-    const double w =
-        double(k - coarse_nodes[2][bk]) / (coarse_nodes[2][bk + 1] - coarse_nodes[2][bk]);
-    double f = 0.0;
-    for (int corner = 0; corner < 8; ++corner) {
-      const int x = corner & 1, y = (corner >> 1) & 1, z = corner >> 2;
-      f += (x ? u : 1 - u) * (y ? v : 1 - v) * (z ? w : 1 - w) * coarse_at(bi + x, bj + y, bk + z);
-    }
-    return f;
-  };
-
-  // Field values of z-level k (nx1 * ny1, index j * nx1 + i).
-  std::vector<int> query_index;
-  Eigen::Matrix3Xd points;
-  auto evaluate_level = [&](int k, std::vector<double>* level) {
-    level->assign(static_cast<size_t>(nx1) * ny1, outside_value);
-    query_index.clear();
-    for (int j = 0; j < ny1; ++j) {
-      for (int i = 0; i < nx1; ++i) {
-        if (padded(i, j, k)) continue;
-        if (s > 1 && !in_band(i, j, k)) {
-          (*level)[j * nx1 + i] = coarse_interpolate(i, j, k);
-          continue;
-        }
-        query_index.push_back(j * nx1 + i);
-      }
-    }
-    points.resize(3, static_cast<Eigen::Index>(query_index.size()));
-    for (size_t q = 0; q < query_index.size(); ++q) {
-      points.col(q) = node_position(query_index[q] % nx1, query_index[q] / nx1, k);
-    }
-    const Eigen::VectorXd values = EvaluateField(field, points, options.max_batch_points);
-    for (size_t q = 0; q < query_index.size(); ++q) (*level)[query_index[q]] = values[q];
-    num_evaluated += static_cast<int64_t>(query_index.size());
-  };
-
-  std::vector<Eigen::Vector3d> vertices;
-  std::vector<Eigen::Vector3i> faces;
-  auto add_vertex = [&](const Eigen::Vector3d& pa, double fa, const Eigen::Vector3d& pb,
-                        double fb) {
-    // Cut edge: exactly one of fa, fb is < iso, so fb - fa != 0.
-    const double t = std::clamp((iso - fa) / (fb - fa), 0.0, 1.0);
-    vertices.push_back(pa + t * (pb - pa));
-    return static_cast<int>(vertices.size()) - 1;
-  };
-  auto level_edges = [&](int k, const std::vector<double>& f, LevelEdges* edges) {
-    edges->x.assign(static_cast<size_t>(cx) * ny1, -1);
-    edges->y.assign(static_cast<size_t>(nx1) * cy, -1);
-    for (int j = 0; j < ny1; ++j) {
-      for (int i = 0; i < cx; ++i) {
-        const double fa = f[j * nx1 + i], fb = f[j * nx1 + i + 1];
-        if ((fa < iso) != (fb < iso)) {
-          edges->x[j * cx + i] =
-              add_vertex(node_position(i, j, k), fa, node_position(i + 1, j, k), fb);
-        }
-      }
-    }
-    for (int j = 0; j < cy; ++j) {
-      for (int i = 0; i < nx1; ++i) {
-        const double fa = f[j * nx1 + i], fb = f[(j + 1) * nx1 + i];
-        if ((fa < iso) != (fb < iso)) {
-          edges->y[j * nx1 + i] =
-              add_vertex(node_position(i, j, k), fa, node_position(i, j + 1, k), fb);
-        }
-      }
-    }
-  };
+  const FineGrid grid(ComputeGridShape(options), options);
+  const double outside_value = options.iso_level + grid.shape.spacing.minCoeff();
+  CoarseBand coarse(grid, options.coarse_stride);
+  if (options.coarse_stride > 1) coarse.Evaluate(field, options, outside_value);
+  LevelSweep sweep(grid, coarse, field, options, outside_value);
 
   std::vector<double> lo, hi;
   LevelEdges lo_edges, hi_edges;
   std::vector<int> z_edges;
-  evaluate_level(0, &lo);
-  level_edges(0, lo, &lo_edges);
-  for (int k = 0; k < cz; ++k) {
-    evaluate_level(k + 1, &hi);
-    level_edges(k + 1, hi, &hi_edges);
-    z_edges.assign(static_cast<size_t>(nx1) * ny1, -1);
-    for (int j = 0; j < ny1; ++j) {
-      for (int i = 0; i < nx1; ++i) {
-        const double fa = lo[j * nx1 + i], fb = hi[j * nx1 + i];
-        if ((fa < iso) != (fb < iso)) {
-          z_edges[j * nx1 + i] =
-              add_vertex(node_position(i, j, k), fa, node_position(i, j, k + 1), fb);
-        }
-      }
-    }
-    const std::vector<double>* level_values[2] = {&lo, &hi};
-    const LevelEdges* level_edge_ids[2] = {&lo_edges, &hi_edges};
-    for (int j = 0; j < cy; ++j) {
-      for (int i = 0; i < cx; ++i) {
-        int config = 0;
-        for (int c = 0; c < 8; ++c) {
-          const int x = c & 1, y = (c >> 1) & 1, z = c >> 2;
-          if ((*level_values[z])[(j + y) * nx1 + i + x] < iso) config |= 1 << c;
-        }
-        if (config == 0 || config == 255) continue;
-        auto vertex_of_edge = [&](int edge) {
-          const int axis = edge / 4, b0 = edge & 1, b1 = (edge >> 1) & 1;
-          if (axis == 0) return level_edge_ids[b1]->x[(j + b0) * cx + i];
-          if (axis == 1) return level_edge_ids[b1]->y[j * nx1 + i + b0];
-          return z_edges[(j + b1) * nx1 + i + b0];
-        };
-        for (const auto& tri : table.triangles[config]) {
-          Eigen::Vector3i face(vertex_of_edge(tri[0]), vertex_of_edge(tri[1]),
-                               vertex_of_edge(tri[2]));
-          DCHECK((face.array() >= 0).all());
-          faces.push_back(face);
-        }
+  sweep.EvaluateLevel(0, &lo);
+  sweep.CutLevelEdges(0, lo, &lo_edges);
+  for (int k = 0; k < grid.cz; ++k) {
+    sweep.EvaluateLevel(k + 1, &hi);
+    sweep.CutLevelEdges(k + 1, hi, &hi_edges);
+    sweep.CutZEdges(k, lo, hi, &z_edges);
+    for (int j = 0; j < grid.cy; ++j) {
+      for (int i = 0; i < grid.cx; ++i) {
+        sweep.AddCellTriangles(table, i, j, lo, hi, lo_edges, hi_edges, z_edges);
       }
     }
     std::swap(lo, hi);
@@ -419,15 +498,10 @@ TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& o
   }
 
   if (stats != nullptr) {
-    stats->num_nodes = static_cast<int64_t>(nx1) * ny1 * (cz + 1);
-    stats->num_evaluated = num_evaluated + static_cast<int64_t>(coarse.size());
+    stats->num_nodes = static_cast<int64_t>(grid.nx1) * grid.ny1 * (grid.cz + 1);
+    stats->num_evaluated = sweep.num_evaluated() + coarse.num_evaluated();
   }
-  TriangleMesh mesh;
-  mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices.size()));
-  for (size_t v = 0; v < vertices.size(); ++v) mesh.vertices.col(v) = vertices[v];
-  mesh.faces.resize(3, static_cast<Eigen::Index>(faces.size()));
-  for (size_t f = 0; f < faces.size(); ++f) mesh.faces.col(f) = faces[f];
-  return mesh;
+  return sweep.Mesh();
 }
 
 TriangleMesh RemoveUnreferencedVertices(const TriangleMesh& mesh) {

@@ -199,15 +199,12 @@ bool AllFinite(const double* data, size_t n) {
   return true;
 }
 
-}  // namespace
-
-GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
-                            const GltfExportOptions& options, tinygltf::Model* out) {
-  options.Check();
-  Timer timer;
+// Throws InputError unless the mesh, the names and the model's transforms can
+// be exported.
+void CheckExportInputs(const Model& model, const TriangleMesh& canonical,
+                       const GltfExportOptions& options) {
   const int V = canonical.NumVertices();
   const int F = canonical.NumFaces();
-  const int B = model.num_bones();
   if (V == 0 || F == 0) ThrowInputError("glTF export: the canonical mesh is empty");
   if (!canonical.vertices.allFinite()) {
     ThrowInputError("glTF export: the canonical mesh has non-finite vertices");
@@ -233,21 +230,15 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
       }
     }
   }
+}
 
-  GltfExportSummary summary;
-  summary.vertices = V;
-  summary.faces = F;
-  summary.joints = B;
+// The mesh's triangle primitive: indices, positions and normals in the
+// scene's world frame (A s X*), and linear vertex colours if asked for.
+tinygltf::Primitive MeshPrimitive(const TriangleMesh& canonical, double s,
+                                  const GltfExportOptions& options, BufferWriter* writer) {
+  const int V = canonical.NumVertices();
+  const int F = canonical.NumFaces();
   const Eigen::Matrix3d& A = OpenCvToGltf();
-  const double s = model.scene_scale();  // the file is in dataset units
-
-  *out = tinygltf::Model();
-  tinygltf::Model& m = *out;
-  m.asset.version = "2.0";
-  m.asset.generator = "banmo-ceres banmo export";
-  BufferWriter writer(&m);
-
-  // Mesh: positions and normals in the scene's world frame (A s X*).
   std::vector<float> positions(3 * static_cast<size_t>(V)), normals(positions.size());
   const Eigen::Matrix3Xd n_canonical = VertexNormals(canonical);
   for (int i = 0; i < V; ++i) {
@@ -264,12 +255,12 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
   }
   tinygltf::Primitive prim;
   prim.mode = TINYGLTF_MODE_TRIANGLES;
-  prim.indices = writer.AddInts(indices, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
-                                1, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-  prim.attributes["POSITION"] = writer.AddFloat(positions, TINYGLTF_TYPE_VEC3, 3,
-                                                TINYGLTF_TARGET_ARRAY_BUFFER, /*bounds=*/true);
+  prim.indices = writer->AddInts(indices, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                                 TINYGLTF_TYPE_SCALAR, 1, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  prim.attributes["POSITION"] = writer->AddFloat(positions, TINYGLTF_TYPE_VEC3, 3,
+                                                 TINYGLTF_TARGET_ARRAY_BUFFER, /*bounds=*/true);
   prim.attributes["NORMAL"] =
-      writer.AddFloat(normals, TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+      writer->AddFloat(normals, TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
   if (options.vertex_colors && canonical.HasColors()) {
     std::vector<float> colors(3 * static_cast<size_t>(V));
     for (int i = 0; i < V; ++i) {
@@ -278,42 +269,213 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
       }
     }
     prim.attributes["COLOR_0"] =
-        writer.AddFloat(colors, TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+        writer->AddFloat(colors, TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
   }
+  return prim;
+}
 
-  if (B > 0) {
-    const Eigen::MatrixXd weights = SkinningWeightsAt(model, canonical.vertices);
-    Eigen::MatrixXi top_joints;
-    Eigen::MatrixXd top_weights;
-    TopInfluences(weights, kGltfInfluences, &top_joints, &top_weights);
-    std::vector<uint16_t> joints(4 * static_cast<size_t>(V));
-    std::vector<float> w(4 * static_cast<size_t>(V));
-    for (int i = 0; i < V; ++i) {
-      if (B > kGltfInfluences) {
-        double kept = 0;
-        for (int k = 0; k < kGltfInfluences; ++k) kept += weights(top_joints(k, i), i);
-        summary.max_dropped_weight = std::max(summary.max_dropped_weight, 1.0 - kept);
-      }
-      float f[4];
-      for (int k = 0; k < 4; ++k) {
-        joints[4 * i + k] = static_cast<uint16_t>(top_joints(k, i));
-        f[k] = static_cast<float>(top_weights(k, i));
-      }
-      // Float rounding leaves the sum within a few 1e-8 of 1; move the
-      // remainder onto the largest weight (slot 0) so it is within one float
-      // ulp of 1 (1.2e-7).
-      const double sum = static_cast<double>(f[0]) + f[1] + f[2] + f[3];
-      f[0] = static_cast<float>(f[0] + (1.0 - sum));
-      for (int k = 0; k < 4; ++k) w[4 * i + k] = f[k];
+// JOINTS_0 / WEIGHTS_0 of the primitive: each vertex's top 4 skinning weights
+// (summing to 1 within a float ulp); the largest weight dropped goes into
+// summary->max_dropped_weight.
+void AddSkinAttributes(const Model& model, const TriangleMesh& canonical, BufferWriter* writer,
+                       tinygltf::Primitive* prim, GltfExportSummary* summary) {
+  const int V = canonical.NumVertices();
+  const int B = model.num_bones();
+  const Eigen::MatrixXd weights = SkinningWeightsAt(model, canonical.vertices);
+  Eigen::MatrixXi top_joints;
+  Eigen::MatrixXd top_weights;
+  TopInfluences(weights, kGltfInfluences, &top_joints, &top_weights);
+  std::vector<uint16_t> joints(4 * static_cast<size_t>(V));
+  std::vector<float> w(4 * static_cast<size_t>(V));
+  for (int i = 0; i < V; ++i) {
+    if (B > kGltfInfluences) {
+      double kept = 0;
+      for (int k = 0; k < kGltfInfluences; ++k) kept += weights(top_joints(k, i), i);
+      summary->max_dropped_weight = std::max(summary->max_dropped_weight, 1.0 - kept);
     }
-    summary.max_dropped_weight = std::max(0.0, summary.max_dropped_weight);
-    prim.attributes["JOINTS_0"] =
-        writer.AddInts(joints, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC4, 4,
-                       TINYGLTF_TARGET_ARRAY_BUFFER);
-    prim.attributes["WEIGHTS_0"] =
-        writer.AddFloat(w, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+    float f[4];
+    for (int k = 0; k < 4; ++k) {
+      joints[4 * i + k] = static_cast<uint16_t>(top_joints(k, i));
+      f[k] = static_cast<float>(top_weights(k, i));
+    }
+    // Float rounding leaves the sum within a few 1e-8 of 1; move the
+    // remainder onto the largest weight (slot 0) so it is within one float
+    // ulp of 1 (1.2e-7).
+    const double sum = static_cast<double>(f[0]) + f[1] + f[2] + f[3];
+    f[0] = static_cast<float>(f[0] + (1.0 - sum));
+    for (int k = 0; k < 4; ++k) w[4 * i + k] = f[k];
   }
+  summary->max_dropped_weight = std::max(0.0, summary->max_dropped_weight);
+  prim->attributes["JOINTS_0"] =
+      writer->AddInts(joints, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC4, 4,
+                      TINYGLTF_TARGET_ARRAY_BUFFER);
+  prim->attributes["WEIGHTS_0"] =
+      writer->AddFloat(w, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+}
 
+// Nodes: 0 axis conversion, 1 root, 2.. bones, last mesh.
+constexpr int kAxisNode = 0, kRootNode = 1, kFirstBoneNode = 2;
+
+// The skin: one joint per bone node, inverse bind matrices of the rest frames
+// in the world frame (A R_b).
+tinygltf::Skin BoneSkin(const std::vector<Eigen::Isometry3d>& rest, BufferWriter* writer) {
+  const int B = static_cast<int>(rest.size());
+  const Eigen::Matrix3d& A = OpenCvToGltf();
+  tinygltf::Skin skin;
+  skin.name = "bones";
+  skin.skeleton = kRootNode;
+  std::vector<float> ibm(16 * static_cast<size_t>(B));
+  for (int b = 0; b < B; ++b) {
+    skin.joints.push_back(kFirstBoneNode + b);
+    Eigen::Matrix4d bind = Eigen::Matrix4d::Identity();  // world_from_joint at rest = A R_b
+    bind.topLeftCorner<3, 3>() = A * rest[b].linear();
+    bind.topRightCorner<3, 1>() = A * rest[b].translation();
+    Eigen::Matrix4d inverse = Eigen::Matrix4d::Identity();
+    inverse.topLeftCorner<3, 3>() = bind.topLeftCorner<3, 3>().transpose();
+    inverse.topRightCorner<3, 1>() =
+        -bind.topLeftCorner<3, 3>().transpose() * bind.topRightCorner<3, 1>();
+    for (int c = 0; c < 4; ++c) {
+      for (int r = 0; r < 4; ++r) ibm[16 * b + 4 * c + r] = static_cast<float>(inverse(r, c));
+    }
+    // Exact affine last row (the validator checks it).
+    ibm[16 * b + 3] = ibm[16 * b + 7] = ibm[16 * b + 11] = 0.0f;
+    ibm[16 * b + 15] = 1.0f;
+  }
+  skin.inverseBindMatrices =
+      writer->AddFloat(ibm, TINYGLTF_TYPE_MAT4, 16, /*target=*/0, /*bounds=*/false);
+  return skin;
+}
+
+// The node tree, the skin (with bones) and the scene; returns the bones' rest
+// frames in dataset units.
+std::vector<Eigen::Isometry3d> AddNodesAndScene(const Model& model, double s, BufferWriter* writer,
+                                                tinygltf::Model* m) {
+  const int B = model.num_bones();
+  const int mesh_node = kFirstBoneNode + B;
+  m->nodes.resize(3 + B);
+  m->nodes[kAxisNode].name = "opencv_to_gltf";
+  m->nodes[kAxisNode].rotation = {1, 0, 0, 0};  // 180 deg about x, [x, y, z, w]
+  m->nodes[kAxisNode].children = {kRootNode};
+  m->nodes[kRootNode].name = "root";
+  m->nodes[mesh_node].name = "mesh";
+  m->nodes[mesh_node].mesh = 0;
+  std::vector<Eigen::Isometry3d> rest(B);
+  for (int b = 0; b < B; ++b) {
+    rest[b] = InDatasetUnits(RestBoneFrame(model.bones() + kBoneSize * b), s);
+    tinygltf::Node& node = m->nodes[kFirstBoneNode + b];
+    node.name = "bone_" + std::to_string(b);
+    SetTrs(rest[b], &node);
+    m->nodes[kRootNode].children.push_back(kFirstBoneNode + b);
+  }
+  tinygltf::Scene scene;
+  scene.name = "banmo";
+  scene.nodes = {kAxisNode};
+  if (B > 0) {
+    // Skinned: the mesh node is a top-level node without transform.
+    scene.nodes.push_back(mesh_node);
+    m->nodes[mesh_node].skin = 0;
+    m->skins.push_back(BoneSkin(rest, writer));
+  } else {
+    // Rigid: the mesh node under "root" undoes A, so that
+    // world = A G^t A^{-1} (A X*) = A G^t X* and the rest pose is A X*.
+    m->nodes[kRootNode].children.push_back(mesh_node);
+    m->nodes[mesh_node].rotation = {1, 0, 0, 0};
+  }
+  m->scenes.push_back(scene);
+  m->defaultScene = 0;
+  return rest;
+}
+
+// Samplers and channels animating node `node` of `anim`: its local transform
+// local(t) at the T key times of accessor `input`.
+void AddAnimatedNode(int node, int T, int input, const std::string& interpolation,
+                     const std::function<Eigen::Isometry3d(int t)>& local, BufferWriter* writer,
+                     tinygltf::Animation* anim) {
+  std::vector<float> translation(3 * static_cast<size_t>(T)), rotation(4 * static_cast<size_t>(T));
+  Eigen::Vector4d previous;
+  for (int t = 0; t < T; ++t) {
+    const Eigen::Isometry3d x = local(t);
+    const Eigen::Vector4d q = GltfQuaternion(x.linear(), t > 0 ? &previous : nullptr);
+    previous = q;
+    for (int c = 0; c < 3; ++c) translation[3 * t + c] = static_cast<float>(x.translation()[c]);
+    // Normalise in float so the stored quaternion is unit to float rounding.
+    Eigen::Vector4f qf = q.cast<float>();
+    qf /= qf.norm();
+    for (int c = 0; c < 4; ++c) rotation[4 * t + c] = qf[c];
+  }
+  for (const char* path : {"translation", "rotation"}) {
+    const bool is_t = std::strcmp(path, "translation") == 0;
+    tinygltf::AnimationSampler sampler;
+    sampler.input = input;
+    sampler.output = is_t ? writer->AddFloat(translation, TINYGLTF_TYPE_VEC3, 3, 0, false)
+                          : writer->AddFloat(rotation, TINYGLTF_TYPE_VEC4, 4, 0, false);
+    sampler.interpolation = interpolation;
+    anim->samplers.push_back(sampler);
+    tinygltf::AnimationChannel channel;
+    channel.sampler = static_cast<int>(anim->samplers.size()) - 1;
+    channel.target_node = node;
+    channel.target_path = path;
+    anim->channels.push_back(channel);
+  }
+}
+
+// Video v's animation: the root's and every bone's transform per frame, keys
+// at t / fps. `rest`: the bones' rest frames in dataset units.
+tinygltf::Animation VideoAnimation(const Model& model, int v, const GltfExportOptions& options,
+                                   const std::vector<Eigen::Isometry3d>& rest, double s,
+                                   BufferWriter* writer) {
+  const int T = static_cast<int>(model.video(v).frames.size());
+  const std::string interpolation =
+      options.interpolation == GltfInterpolation::kLinear ? "LINEAR" : "STEP";
+  tinygltf::Animation anim;
+  anim.name = VideoName(options, v, model.num_videos());
+  std::vector<float> times(T);
+  for (int t = 0; t < T; ++t) times[t] = static_cast<float>(t / options.fps);
+  for (int t = 1; t < T; ++t) {
+    if (!(times[t] > times[t - 1])) {
+      ThrowInputError("fps: ", options.fps, " too large: key times of ", T,
+                      " frames collide in float32");
+    }
+  }
+  const int input = writer->AddFloat(times, TINYGLTF_TYPE_SCALAR, 1, 0, /*bounds=*/true);
+  AddAnimatedNode(
+      kRootNode, T, input, interpolation,
+      [&](int t) { return InDatasetUnits(IsometryFromPose(model.RootPose(v, t).data()), s); },
+      writer, &anim);
+  for (int b = 0; b < static_cast<int>(rest.size()); ++b) {
+    AddAnimatedNode(
+        kFirstBoneNode + b, T, input, interpolation,
+        [&, b](int t) {
+          return InDatasetUnits(IsometryFromPose(model.frame(v, t).bones_t.data() + kPoseSize * b),
+                                s) *
+                 rest[b];
+        },
+        writer, &anim);
+  }
+  return anim;
+}
+
+}  // namespace
+
+GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
+                            const GltfExportOptions& options, tinygltf::Model* out) {
+  options.Check();
+  Timer timer;
+  CheckExportInputs(model, canonical, options);
+  GltfExportSummary summary;
+  summary.vertices = canonical.NumVertices();
+  summary.faces = canonical.NumFaces();
+  summary.joints = model.num_bones();
+  const double s = model.scene_scale();  // the file is in dataset units
+
+  *out = tinygltf::Model();
+  tinygltf::Model& m = *out;
+  m.asset.version = "2.0";
+  m.asset.generator = "banmo-ceres banmo export";
+  BufferWriter writer(&m);
+
+  tinygltf::Primitive prim = MeshPrimitive(canonical, s, options, &writer);
+  if (model.num_bones() > 0) AddSkinAttributes(model, canonical, &writer, &prim, &summary);
   tinygltf::Material material;
   material.name = "vertex_colors";
   material.pbrMetallicRoughness.baseColorFactor = {1, 1, 1, 1};
@@ -326,120 +488,12 @@ GltfExportSummary BuildGltf(const Model& model, const TriangleMesh& canonical,
   mesh.primitives.push_back(prim);
   m.meshes.push_back(mesh);
 
-  // Nodes: 0 axis conversion, 1 root, 2.. bones, last mesh.
-  const int axis_node = 0, root_node = 1, first_bone = 2, mesh_node = 2 + B;
-  m.nodes.resize(3 + B);
-  m.nodes[axis_node].name = "opencv_to_gltf";
-  m.nodes[axis_node].rotation = {1, 0, 0, 0};  // 180 deg about x, [x, y, z, w]
-  m.nodes[axis_node].children = {root_node};
-  m.nodes[root_node].name = "root";
-  m.nodes[mesh_node].name = "mesh";
-  m.nodes[mesh_node].mesh = 0;
-  std::vector<Eigen::Isometry3d> rest(B);
-  for (int b = 0; b < B; ++b) {
-    rest[b] = InDatasetUnits(RestBoneFrame(model.bones() + kBoneSize * b), s);
-    tinygltf::Node& node = m.nodes[first_bone + b];
-    node.name = "bone_" + std::to_string(b);
-    SetTrs(rest[b], &node);
-    m.nodes[root_node].children.push_back(first_bone + b);
-  }
-  tinygltf::Scene scene;
-  scene.name = "banmo";
-  scene.nodes = {axis_node};
-  if (B > 0) {
-    // Skinned: the mesh node is a top-level node without transform.
-    scene.nodes.push_back(mesh_node);
-    m.nodes[mesh_node].skin = 0;
-    tinygltf::Skin skin;
-    skin.name = "bones";
-    skin.skeleton = root_node;
-    std::vector<float> ibm(16 * static_cast<size_t>(B));
-    for (int b = 0; b < B; ++b) {
-      skin.joints.push_back(first_bone + b);
-      Eigen::Matrix4d bind = Eigen::Matrix4d::Identity();  // world_from_joint at rest = A R_b
-      bind.topLeftCorner<3, 3>() = A * rest[b].linear();
-      bind.topRightCorner<3, 1>() = A * rest[b].translation();
-      Eigen::Matrix4d inverse = Eigen::Matrix4d::Identity();
-      inverse.topLeftCorner<3, 3>() = bind.topLeftCorner<3, 3>().transpose();
-      inverse.topRightCorner<3, 1>() =
-          -bind.topLeftCorner<3, 3>().transpose() * bind.topRightCorner<3, 1>();
-      for (int c = 0; c < 4; ++c) {
-        for (int r = 0; r < 4; ++r) ibm[16 * b + 4 * c + r] = static_cast<float>(inverse(r, c));
-      }
-      // Exact affine last row (the validator checks it).
-      ibm[16 * b + 3] = ibm[16 * b + 7] = ibm[16 * b + 11] = 0.0f;
-      ibm[16 * b + 15] = 1.0f;
-    }
-    skin.inverseBindMatrices =
-        writer.AddFloat(ibm, TINYGLTF_TYPE_MAT4, 16, /*target=*/0, /*bounds=*/false);
-    m.skins.push_back(skin);
-  } else {
-    // Rigid: the mesh node under "root" undoes A, so that
-    // world = A G^t A^{-1} (A X*) = A G^t X* and the rest pose is A X*.
-    m.nodes[root_node].children.push_back(mesh_node);
-    m.nodes[mesh_node].rotation = {1, 0, 0, 0};
-  }
-  m.scenes.push_back(scene);
-  m.defaultScene = 0;
-
+  const std::vector<Eigen::Isometry3d> rest = AddNodesAndScene(model, s, &writer, &m);
   // Animations: one per video.
-  const std::string interpolation =
-      options.interpolation == GltfInterpolation::kLinear ? "LINEAR" : "STEP";
   for (int v = 0; v < model.num_videos(); ++v) {
     const int T = static_cast<int>(model.video(v).frames.size());
     if (T == 0) continue;
-    tinygltf::Animation anim;
-    anim.name = VideoName(options, v, model.num_videos());
-    std::vector<float> times(T);
-    for (int t = 0; t < T; ++t) times[t] = static_cast<float>(t / options.fps);
-    for (int t = 1; t < T; ++t) {
-      if (!(times[t] > times[t - 1])) {
-        ThrowInputError("fps: ", options.fps, " too large: key times of ", T,
-                        " frames collide in float32");
-      }
-    }
-    const int input = writer.AddFloat(times, TINYGLTF_TYPE_SCALAR, 1, 0, /*bounds=*/true);
-    // Animated local transform of node `node` at frame t.
-    auto add_node = [&](int node, const std::function<Eigen::Isometry3d(int t)>& local) {
-      std::vector<float> translation(3 * static_cast<size_t>(T)),
-          rotation(4 * static_cast<size_t>(T));
-      Eigen::Vector4d previous;
-      for (int t = 0; t < T; ++t) {
-        const Eigen::Isometry3d x = local(t);
-        const Eigen::Vector4d q = GltfQuaternion(x.linear(), t > 0 ? &previous : nullptr);
-        previous = q;
-        for (int c = 0; c < 3; ++c) translation[3 * t + c] = static_cast<float>(x.translation()[c]);
-        // Normalise in float so the stored quaternion is unit to float rounding.
-        Eigen::Vector4f qf = q.cast<float>();
-        qf /= qf.norm();
-        for (int c = 0; c < 4; ++c) rotation[4 * t + c] = qf[c];
-      }
-      for (const char* path : {"translation", "rotation"}) {
-        const bool is_t = std::strcmp(path, "translation") == 0;
-        tinygltf::AnimationSampler sampler;
-        sampler.input = input;
-        sampler.output = is_t ? writer.AddFloat(translation, TINYGLTF_TYPE_VEC3, 3, 0, false)
-                              : writer.AddFloat(rotation, TINYGLTF_TYPE_VEC4, 4, 0, false);
-        sampler.interpolation = interpolation;
-        anim.samplers.push_back(sampler);
-        tinygltf::AnimationChannel channel;
-        channel.sampler = static_cast<int>(anim.samplers.size()) - 1;
-        channel.target_node = node;
-        channel.target_path = path;
-        anim.channels.push_back(channel);
-      }
-    };
-    add_node(root_node, [&](int t) {
-      return InDatasetUnits(IsometryFromPose(model.RootPose(v, t).data()), s);
-    });
-    for (int b = 0; b < B; ++b) {
-      add_node(first_bone + b, [&, b](int t) {
-        return InDatasetUnits(IsometryFromPose(model.frame(v, t).bones_t.data() + kPoseSize * b),
-                              s) *
-               rest[b];
-      });
-    }
-    m.animations.push_back(anim);
+    m.animations.push_back(VideoAnimation(model, v, options, rest, s, &writer));
     ++summary.animations;
     summary.keyframes += T;
   }

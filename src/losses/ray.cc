@@ -50,8 +50,8 @@ bool Ray::HasTerm(LossTerm term, const RayLossWeights& weights) const {
   return false;
 }
 
-RenderLocals RenderLocals::For(const Ray& ray, const RayLossWeights& weights) {
-  RenderLocals l;
+CompositeLocals CompositeLocals::For(const Ray& ray, const RayLossWeights& weights) {
+  CompositeLocals l;
   const int n = ray.NumSamples();
   l.num_samples = n;
   l.has_rgb = ray.HasTerm(LossTerm::kRgb, weights);
@@ -64,7 +64,7 @@ RenderLocals RenderLocals::For(const Ray& ray, const RayLossWeights& weights) {
   l.rgb = offset;
   if (l.has_rgb) offset += 3 * n;
   l.canonical = offset;
-  if (l.has_matched) offset += 3 * n;  // X*_i enter the render functor only through Eq. 5
+  if (l.has_matched) offset += 3 * n;  // X*_i enter the composite functor only through Eq. 5
   l.displacement = offset;
   if (l.has_displacement) offset += 2 * n;
   l.log_beta = offset;

@@ -85,7 +85,7 @@ void RayPipeline::Run() {
   DeltaBackwardInputs();
   PlaceSamples();
   EvaluateFields();
-  // Pass 3 (per ray): forward warps, projections, the render functor with
+  // Pass 3 (per ray): forward warps, projections, the composite functor with
   // Jets over its locals, the 3D cycle, and the reverse chain to the small
   // parameter blocks.
   ParallelFor(num_rays, [&](int begin, int end) {
@@ -286,25 +286,25 @@ RayPipeline::RayWork::RayWork(int r, const Ray& ray, const RayParameters& p, Ray
       n(s.num_samples),
       bones(p.block[kBlockBones]),
       intr(p.block[kBlockIntrinsics]),
-      render(ray, weights),
-      R(render.num_residuals()),
+      composite(ray, weights),
+      R(composite.num_residuals()),
       cycle3d(ray.HasTerm(LossTerm::kCycle3d, weights)) {}
 
 void RayPipeline::EvaluateRay(int r) {
   RayWork w(r, *rays[r], params[r], scratch[r], (*out)[r], weights);
   // Rows of the reverse chain: R, or one cotangent row in gradient mode.
   w.Rc = gradient ? std::min(w.R, 1) : w.R;
-  w.s.render_rows = w.Rc;
+  w.s.composite_rows = w.Rc;
   InitEvaluation(w);
-  RenderInputs(w);
-  RenderResiduals(w);
+  CompositeInputs(w);
+  CompositeResiduals(w);
   if (!RenderingWeights(w)) return;
-  ReverseRender(w);
+  ReverseComposite(w);
   Cycle3dGradient(w);
   Cycle3dRows(w);
 }
 
-// The ray's residual rows (render terms in table order, then the 3D cycle)
+// The ray's residual rows (composite terms in table order, then the 3D cycle)
 // and Jacobian blocks.
 void RayPipeline::InitEvaluation(RayWork& w) {
   RayEvaluation& ev = w.ev;
@@ -317,8 +317,8 @@ void RayPipeline::InitEvaluation(RayWork& w) {
   ev.term_row.fill(-1);
   {
     int row = 0;
-    for (int t = 0; t < kNumRenderTerms; ++t) {
-      if (w.render.active(RayTerm(t))) {
+    for (int t = 0; t < kNumCompositeTerms; ++t) {
+      if (w.composite.active(RayTerm(t))) {
         ev.term_row[t] = row;
         row += LossTermResiduals(RayTerm(t), n);
       }
@@ -336,20 +336,20 @@ void RayPipeline::InitEvaluation(RayWork& w) {
   }
 }
 
-void RayPipeline::RenderInputs(RayWork& w) {
+void RayPipeline::CompositeInputs(RayWork& w) {
   const Ray& ray = w.ray;
   const RayParameters& p = w.p;
   RayScratch& s = w.s;
   const int n = w.n;
   const double* bones = w.bones;
   const double* intr = w.intr;
-  const RenderLocals& L = w.render.locals();
+  const CompositeLocals& L = w.composite.locals();
   std::vector<double>& u = w.u;
   std::vector<WarpJacobian>& flow_warp = w.flow_warp;
   std::vector<ProjectionJacobian>& flow_proj = w.flow_proj;
   WarpJacobian& cycle_warp = w.cycle_warp;
   ProjectionJacobian& cycle_proj = w.cycle_proj;
-  // Locals of the render functor.
+  // Locals of the composite functor.
   u.assign(L.size, 0.0);
   for (int i = 0; i < n; ++i) {
     const int col = s.field_offset + i;
@@ -406,25 +406,25 @@ void RayPipeline::RenderInputs(RayWork& w) {
   }
 }
 
-void RayPipeline::RenderResiduals(RayWork& w) {
+void RayPipeline::CompositeResiduals(RayWork& w) {
   RayEvaluation& ev = w.ev;
   const int r = w.r;
   const int n = w.n;
-  const RayRenderFunctor& render = w.render;
+  const RayCompositeFunctor& composite = w.composite;
   const int R = w.R;
   std::vector<double>& u = w.u;
   RowMajorMatrix& D = w.D;
   if (R > 0) {
     if (jacobians) {
-      ChunkedJacobian<32>(render, u, R, ev.residuals.data(), &D);
+      ChunkedJacobian<32>(composite, u, R, ev.residuals.data(), &D);
     } else {
-      render(u.data(), ev.residuals.data());
+      composite(u.data(), ev.residuals.data());
     }
   }
   if (gradient && R > 0) {
-    // Each render term's rows collapse into c = rho'(s) r, s = |r_term|^2.
+    // Each composite term's rows collapse into c = rho'(s) r, s = |r_term|^2.
     Eigen::RowVectorXd c(R);
-    for (int t = 0; t < kNumRenderTerms; ++t) {
+    for (int t = 0; t < kNumCompositeTerms; ++t) {
       const int row = ev.term_row[t];
       if (row < 0) continue;
       const int rows = LossTermResiduals(RayTerm(t), n);
@@ -493,11 +493,11 @@ void RayPipeline::ChainDelta(RayJacobians& jac, const Eigen::Ref<const RowMajorM
   a_logits += a_dl;
 }
 
-void RayPipeline::ReverseRender(RayWork& w) {
+void RayPipeline::ReverseComposite(RayWork& w) {
   RayScratch& s = w.s;
   const int r = w.r;
   const int n = w.n;
-  const RenderLocals& L = w.render.locals();
+  const CompositeLocals& L = w.composite.locals();
   const int Rc = w.Rc;
   const bool cycle3d = w.cycle3d;
   std::vector<WarpJacobian>& flow_warp = w.flow_warp;
@@ -506,7 +506,7 @@ void RayPipeline::ReverseRender(RayWork& w) {
   ProjectionJacobian& cycle_proj = w.cycle_proj;
   RowMajorMatrix& D = w.D;
   auto& jac = w.ev.jacobians;
-  // ---- Reverse chain (render rows). ----
+  // ---- Reverse chain (composite rows). ----
   RowMajorMatrix a_xstar = RowMajorMatrix::Zero(Rc, 3 * n);
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> a_view =
       Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>::Zero(Rc, 3);
@@ -514,7 +514,7 @@ void RayPipeline::ReverseRender(RayWork& w) {
   s.a_rgb = RowMajorMatrix::Zero(Rc, 3 * n);
   s.a_xhat = RowMajorMatrix::Zero(Rc, 3);
   if (delta != nullptr) {
-    // Gradient mode: one cotangent row shared by the render and 3D-cycle terms.
+    // Gradient mode: one cotangent row shared by the composite and 3D-cycle terms.
     const int rows = gradient ? 1 : Rc;
     s.a_dbw = RowMajorMatrix::Zero(rows, B * n);
     s.a_dfw = RowMajorMatrix::Zero(rows, B * (fw_groups[r + 1] - fw_groups[r]));
@@ -711,7 +711,7 @@ void RayPipeline::MlpGradient() {
   Eigen::Matrix3Xd d_rgb = Eigen::Matrix3Xd::Zero(3, total_samples);
   for (int r = 0; r < num_rays; ++r) {
     const RayScratch& s = scratch[r];
-    if (s.render_rows == 0) continue;
+    if (s.composite_rows == 0) continue;
     for (int i = 0; i < s.num_samples; ++i) {
       d_sdf(s.field_offset + i) = s.a_sdf(0, i);
       for (int c = 0; c < 3; ++c) d_rgb(c, s.field_offset + i) = s.a_rgb(0, 3 * i + c);
@@ -727,7 +727,7 @@ void RayPipeline::MlpGradient() {
     Eigen::MatrixXd d_psi = Eigen::MatrixXd::Zero(kEmbeddingFeatureDim, total_match);
     for (int r = 0; r < num_rays; ++r) {
       const RayScratch& s = scratch[r];
-      if (s.render_rows == 0 || s.num_match == 0) continue;
+      if (s.composite_rows == 0 || s.num_match == 0) continue;
       const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
       const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
       const Eigen::Vector3d a = s.a_xhat.row(0).transpose();
@@ -756,7 +756,7 @@ void RayPipeline::MlpGradient() {
 // row over the whole minibatch, grouped per ray.
 void RayPipeline::MlpJacobians() {
   int max_rows = 0;
-  for (const RayScratch& s : scratch) max_rows = std::max(max_rows, s.render_rows);
+  for (const RayScratch& s : scratch) max_rows = std::max(max_rows, s.composite_rows);
   Eigen::VectorXd d_sdf(total_samples);
   Eigen::Matrix3Xd d_rgb(3, total_samples);
   Eigen::MatrixXd d_sdf_params, d_color_params, d_embedding_params;
@@ -768,7 +768,7 @@ void RayPipeline::MlpJacobians() {
     bool any_match = false;
     for (int r = 0; r < num_rays; ++r) {
       const RayScratch& s = scratch[r];
-      if (k >= s.render_rows) continue;
+      if (k >= s.composite_rows) continue;
       for (int i = 0; i < s.num_samples; ++i) {
         d_sdf(s.field_offset + i) = s.a_sdf(k, i);
         for (int c = 0; c < 3; ++c) d_rgb(c, s.field_offset + i) = s.a_rgb(k, 3 * i + c);
@@ -780,7 +780,7 @@ void RayPipeline::MlpJacobians() {
       field.BackwardBatch(sdf_params, color_params, fb, d_sdf, d_rgb, field_groups, &d_sdf_params,
                           &d_color_params);
       for (int r = 0; r < num_rays; ++r) {
-        if (k >= scratch[r].render_rows) continue;
+        if (k >= scratch[r].composite_rows) continue;
         (*out)[r].jacobians[kBlockSdf].row(k) = d_sdf_params.col(r).transpose();
         (*out)[r].jacobians[kBlockColor].row(k) = d_color_params.col(r).transpose();
       }
@@ -789,7 +789,7 @@ void RayPipeline::MlpJacobians() {
       d_psi.setZero();
       for (int r = 0; r < num_rays; ++r) {
         const RayScratch& s = scratch[r];
-        if (k >= s.render_rows || s.num_match == 0) continue;
+        if (k >= s.composite_rows || s.num_match == 0) continue;
         const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
         const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
         const Eigen::Vector3d a = s.a_xhat.row(k).transpose();
@@ -800,7 +800,7 @@ void RayPipeline::MlpJacobians() {
       }
       field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, match_groups, &d_embedding_params);
       for (int r = 0; r < num_rays; ++r) {
-        if (k >= scratch[r].render_rows || scratch[r].num_match == 0) continue;
+        if (k >= scratch[r].composite_rows || scratch[r].num_match == 0) continue;
         (*out)[r].jacobians[kBlockEmbedding].row(k) = d_embedding_params.col(r).transpose();
       }
     }
@@ -812,7 +812,7 @@ void RayPipeline::MlpJacobians() {
         delta->BackwardBatch(delta_params, bw, d_bw, field_groups, &g_bw);
         if (total_fw > 0) delta->BackwardBatch(delta_params, fw, d_fw, fw_groups, &g_fw);
         for (int r = 0; r < num_rays; ++r) {
-          if (k >= scratch[r].render_rows) continue;
+          if (k >= scratch[r].composite_rows) continue;
           auto row = (*out)[r].jacobians[kBlockDeltaSkin].row(k);
           row = g_bw.col(r).transpose();
           if (total_fw > 0) row += g_fw.col(r).transpose();

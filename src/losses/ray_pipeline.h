@@ -6,7 +6,7 @@
 //   PlaceSamples          pass 1: sample placement, view direction, backward warp;
 //   EvaluateFields        pass 2: the canonical fields, embeddings and
 //                         soft-argmax for all samples at once;
-//   EvaluateRay           pass 3, per ray: render inputs, the render functor
+//   EvaluateRay           pass 3, per ray: composite inputs, the composite functor
 //                         with Jets over its locals, rendering weights, the
 //                         reverse chain, the 3D cycle;
 //   MlpGradient           pass 4, gradient mode: one backward pass per MLP;
@@ -97,7 +97,7 @@ struct RayScratch {
   int field_offset = 0;  // first column of the ray's samples in the field batch
   int match_offset = 0;  // first column of the ray's K grid points in the embedding batch
   int num_match = 0;     // K (0 if the ray has no feature terms)
-  int render_rows = 0;
+  int composite_rows = 0;
   Eigen::Matrix3Xd x_root, x_star;
   std::vector<Mat37> dxroot_droot;
   std::vector<Mat34> dxroot_dk;
@@ -110,7 +110,7 @@ struct RayScratch {
   // Delta skinning: the ray's columns in the forward-warp batch (X*_i when
   // the flow or the 3D cycle pushes them forward, then X_hat* for the 2D
   // cycle), and the adjoints of the delta logits (rows x B per column) of the
-  // render rows (a_dbw: backward warp at sample i, a_dfw: forward batch
+  // composite rows (a_dbw: backward warp at sample i, a_dfw: forward batch
   // column j) and of the 3D-cycle rows (3n x B each, sample i's rows 3i..).
   int fw_offset = 0;
   int fw_samples = 0;
@@ -153,11 +153,11 @@ class RayPipeline {
     const int n;
     const double* bones;
     const double* intr;
-    const RayRenderFunctor render;
-    const int R;  // render rows
+    const RayCompositeFunctor composite;
+    const int R;  // composite rows
     int Rc = 0;   // rows of the reverse chain: R, or 1 in gradient mode
     const bool cycle3d;
-    std::vector<double> u;  // the render functor's locals
+    std::vector<double> u;  // the composite functor's locals
     std::vector<WarpJacobian> flow_warp;
     std::vector<ProjectionJacobian> flow_proj;
     WarpJacobian cycle_warp;
@@ -172,11 +172,11 @@ class RayPipeline {
   void EvaluateFields();
   void EvaluateRay(int r);
   void InitEvaluation(RayWork& w);
-  void RenderInputs(RayWork& w);
-  void RenderResiduals(RayWork& w);
+  void CompositeInputs(RayWork& w);
+  void CompositeResiduals(RayWork& w);
   // False when no Jacobians are wanted (the ray is done).
   bool RenderingWeights(RayWork& w);
-  void ReverseRender(RayWork& w);
+  void ReverseComposite(RayWork& w);
   void Cycle3dSample(RayWork& w, int i, WarpJacobian* qj, Cycle3dJacobian* E) const;
   void Cycle3dGradient(RayWork& w);
   void Cycle3dRows(RayWork& w);

@@ -65,8 +65,8 @@ class RayReferenceFunctor {
     const T* pose_code = block[kBlockPoseCode];
     const T* rest_code = block[kBlockRestPoseCode];
 
-    const RayRenderFunctor render(ray_, weights);
-    const RenderLocals& L = render.locals();
+    const RayCompositeFunctor composite(ray_, weights);
+    const CompositeLocals& L = composite.locals();
     std::vector<T> u(L.size, T(0));
     std::vector<T> x_star(3 * n);
     T view[3];
@@ -126,11 +126,11 @@ class RayReferenceFunctor {
     }
 
     if (term_ != LossTerm::kCycle3d) {
-      std::vector<T> all(render.num_residuals());
-      render(u.data(), all.data());
+      std::vector<T> all(composite.num_residuals());
+      composite(u.data(), all.data());
       int row = 0;
       for (int t = 0; t < static_cast<int>(term_); ++t) {
-        if (render.active(RayTerm(t))) {
+        if (composite.active(RayTerm(t))) {
           row += LossTermResiduals(RayTerm(t), n);
         }
       }

@@ -380,8 +380,9 @@ void ObjectSideRootCorrections(Model* model) {
   }
 }
 
-std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
-  const std::string yaml_path = dir + "/model.yaml";
+// model.yaml of folder `dir` parsed, with its format checked (sets *legacy for
+// the solver's older checkpoint format).
+YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, bool* legacy) {
   if (!std::filesystem::exists(yaml_path)) {
     ThrowInputError(dir, ": not a model folder (no model.yaml)", kWhatToDo);
   }
@@ -399,56 +400,127 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   }
   std::string format;
   ReadRequired(yaml_path, root, "format", &format);
-  const bool legacy = format == kLegacyCheckpointFormat;
-  if (!legacy && format != kModelFileFormat) {
+  *legacy = format == kLegacyCheckpointFormat;
+  if (!*legacy && format != kModelFileFormat) {
     ThrowInputError(yaml_path, ": unknown model format '", format, "' (this banmo reads ",
                     kModelFileFormat, " and ", kLegacyCheckpointFormat,
                     "); read it with the banmo that wrote it, or solve again with this one");
   }
+  return root;
+}
 
+// The model options and training sampling of a legacy checkpoint: the
+// config's model section, the sizes those of model_size (absent before
+// automatic sizing existed).
+void ReadLegacyOptions(const std::string& yaml_path, const YAML::Node& root, ModelOptions* options,
+                       std::optional<TrainingSampling>* sampling) {
+  std::string config_text;
+  ReadRequired(yaml_path, root, "config", &config_text);
+  const std::string config_source = yaml_path + " (config)";
+  YAML::Node config;
+  try {
+    config = YAML::Load(config_text);
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(config_source, ": not valid YAML (", e.what(), ")", kWhatToDo);
+  }
+  if (IsMap(config) && config["model"].IsDefined()) {
+    OptionsReader(config_source, "model", config["model"]).ReadInto(options);
+  }
+  const YAML::Node size = root["model_size"];
+  if (size.IsDefined()) {
+    ReadRequired(yaml_path + " (model_size)", size, "num_bones", &options->num_bones);
+    ReadRequired(yaml_path + " (model_size)", size, "sdf_width", &options->field.sdf_width);
+    ReadRequired(yaml_path + " (model_size)", size, "color_width", &options->field.color_width);
+  }
+  *sampling = LegacyTrainingSampling(config, config_source);
+}
+
+// The model options (key 'options') and the optional training_sampling.
+void ReadOptions(const std::string& yaml_path, const YAML::Node& root, ModelOptions* options,
+                 std::optional<TrainingSampling>* sampling) {
+  const YAML::Node node = root["options"];
+  if (!node.IsDefined()) ThrowInputError(yaml_path, ": missing key 'options'", kWhatToDo);
+  OptionsReader(yaml_path, "options", node).ReadInto(options);
+  const YAML::Node s = root["training_sampling"];
+  if (s.IsDefined()) {
+    TrainingSampling t;
+    const std::string source = yaml_path + " (training_sampling)";
+    ReadRequired(source, s, "samples_per_ray", &t.samples_per_ray);
+    ReadRequired(source, s, "near_far_margin", &t.near_far_margin);
+    ReadRequired(source, s, "importance_depth", &t.importance_depth);
+    if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0)) {
+      ThrowInputError(yaml_path,
+                      ": key 'training_sampling': expected samples_per_ray > 0 and "
+                      "near_far_margin >= 0",
+                      kWhatToDo);
+    }
+    *sampling = t;
+  }
+}
+
+// Frame counts and cameras of the videos (key 'videos').
+void ReadVideos(const std::string& yaml_path, const YAML::Node& root, std::vector<int>* frames,
+                std::vector<PinholeCamera>* cameras) {
+  const YAML::Node videos = root["videos"];
+  if (!IsSequence(videos)) {
+    ThrowInputError(yaml_path, ": key 'videos': expected a list of videos", kWhatToDo);
+  }
+  for (size_t v = 0; v < videos.size(); ++v) {
+    const std::string source = yaml_path + " (videos[" + std::to_string(v) + "])";
+    int count = 0;
+    PinholeCamera cam;
+    ReadRequired(source, videos[v], "frames", &count);
+    ReadRequired(source, videos[v], "width", &cam.width);
+    ReadRequired(source, videos[v], "height", &cam.height);
+    std::vector<double> k;
+    ReadRequired(source, videos[v], "intrinsics", &k);
+    if (count < 0 || cam.width <= 0 || cam.height <= 0 || k.size() != 4) {
+      ThrowInputError(source, ": expected frames >= 0, width and height > 0 and 4 intrinsics",
+                      kWhatToDo);
+    }
+    for (int i = 0; i < 4; ++i) cam.intrinsics[i] = k[i];
+    frames->push_back(count);
+    cameras->push_back(cam);
+  }
+}
+
+// params.bin of `dir` into the model's blocks, after checking its magic and
+// that its value count is `expected_count` (model.yaml's) and the model's.
+void ReadParameters(const std::string& dir, const std::string& yaml_path, uint64_t expected_count,
+                    Model* model) {
+  const std::string params_path = dir + "/params.bin";
+  const std::string params = ReadFile(params_path);
+  uint64_t count = 0;
+  if (params.size() < sizeof(kMagic) + sizeof(count) ||
+      std::memcmp(params.data(), kMagic, sizeof(kMagic)) != 0) {
+    ThrowInputError(params_path, ": not a banmo parameter file (the file is damaged)", kWhatToDo);
+  }
+  std::memcpy(&count, params.data() + sizeof(kMagic), sizeof(count));
+  uint64_t model_count = 0;
+  model->ForEachBlock([&](const std::string&, const double*, int size) { model_count += size; });
+  if (count != expected_count || count != model_count ||
+      params.size() != sizeof(kMagic) + sizeof(count) + sizeof(double) * count) {
+    ThrowInputError(params_path, ": holds ", count, " values (", params.size(),
+                    " bytes), expected ", model_count, " for the model in ", yaml_path,
+                    " (the files are damaged or from different saves)", kWhatToDo);
+  }
+  const char* p = params.data() + sizeof(kMagic) + sizeof(count);
+  model->ForEachBlock([&](const std::string&, double* data, int size) {
+    std::memcpy(data, p, sizeof(double) * size);
+    p += sizeof(double) * size;
+  });
+}
+
+std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
+  const std::string yaml_path = dir + "/model.yaml";
+  bool legacy = false;
+  const YAML::Node root = LoadModelYaml(dir, yaml_path, &legacy);
   ModelOptions options;
   std::optional<TrainingSampling> sampling;
   if (legacy) {
-    // The model options are the config's model section, the sizes those of
-    // model_size (absent before automatic sizing existed).
-    std::string config_text;
-    ReadRequired(yaml_path, root, "config", &config_text);
-    const std::string config_source = yaml_path + " (config)";
-    YAML::Node config;
-    try {
-      config = YAML::Load(config_text);
-    } catch (const YAML::Exception& e) {
-      ThrowInputError(config_source, ": not valid YAML (", e.what(), ")", kWhatToDo);
-    }
-    if (IsMap(config) && config["model"].IsDefined()) {
-      OptionsReader(config_source, "model", config["model"]).ReadInto(&options);
-    }
-    const YAML::Node size = root["model_size"];
-    if (size.IsDefined()) {
-      ReadRequired(yaml_path + " (model_size)", size, "num_bones", &options.num_bones);
-      ReadRequired(yaml_path + " (model_size)", size, "sdf_width", &options.field.sdf_width);
-      ReadRequired(yaml_path + " (model_size)", size, "color_width", &options.field.color_width);
-    }
-    sampling = LegacyTrainingSampling(config, config_source);
+    ReadLegacyOptions(yaml_path, root, &options, &sampling);
   } else {
-    const YAML::Node node = root["options"];
-    if (!node.IsDefined()) ThrowInputError(yaml_path, ": missing key 'options'", kWhatToDo);
-    OptionsReader(yaml_path, "options", node).ReadInto(&options);
-    const YAML::Node s = root["training_sampling"];
-    if (s.IsDefined()) {
-      TrainingSampling t;
-      const std::string source = yaml_path + " (training_sampling)";
-      ReadRequired(source, s, "samples_per_ray", &t.samples_per_ray);
-      ReadRequired(source, s, "near_far_margin", &t.near_far_margin);
-      ReadRequired(source, s, "importance_depth", &t.importance_depth);
-      if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0)) {
-        ThrowInputError(yaml_path,
-                        ": key 'training_sampling': expected samples_per_ray > 0 and "
-                        "near_far_margin >= 0",
-                        kWhatToDo);
-      }
-      sampling = t;
-    }
+    ReadOptions(yaml_path, root, &options, &sampling);
   }
   try {
     options.Check();
@@ -477,28 +549,7 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
 
   std::vector<int> frames;
   std::vector<PinholeCamera> cameras;
-  const YAML::Node videos = root["videos"];
-  if (!IsSequence(videos)) {
-    ThrowInputError(yaml_path, ": key 'videos': expected a list of videos", kWhatToDo);
-  }
-  for (size_t v = 0; v < videos.size(); ++v) {
-    const std::string source = yaml_path + " (videos[" + std::to_string(v) + "])";
-    int count = 0;
-    PinholeCamera cam;
-    ReadRequired(source, videos[v], "frames", &count);
-    ReadRequired(source, videos[v], "width", &cam.width);
-    ReadRequired(source, videos[v], "height", &cam.height);
-    std::vector<double> k;
-    ReadRequired(source, videos[v], "intrinsics", &k);
-    if (count < 0 || cam.width <= 0 || cam.height <= 0 || k.size() != 4) {
-      ThrowInputError(source, ": expected frames >= 0, width and height > 0 and 4 intrinsics",
-                      kWhatToDo);
-    }
-    for (int i = 0; i < 4; ++i) cam.intrinsics[i] = k[i];
-    frames.push_back(count);
-    cameras.push_back(cam);
-  }
-
+  ReadVideos(yaml_path, root, &frames, &cameras);
   auto model = std::make_unique<Model>(options, frames, cameras);
   model->set_scene_scale(scene_scale);
   if (sampling) model->set_training_sampling(*sampling);
@@ -512,28 +563,7 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
     }
     model->set_canonical_bounds(Eigen::AlignedBox3d(lo, hi));
   }
-
-  const std::string params_path = dir + "/params.bin";
-  const std::string params = ReadFile(params_path);
-  uint64_t count = 0;
-  if (params.size() < sizeof(kMagic) + sizeof(count) ||
-      std::memcmp(params.data(), kMagic, sizeof(kMagic)) != 0) {
-    ThrowInputError(params_path, ": not a banmo parameter file (the file is damaged)", kWhatToDo);
-  }
-  std::memcpy(&count, params.data() + sizeof(kMagic), sizeof(count));
-  uint64_t model_count = 0;
-  model->ForEachBlock([&](const std::string&, const double*, int size) { model_count += size; });
-  if (count != expected_count || count != model_count ||
-      params.size() != sizeof(kMagic) + sizeof(count) + sizeof(double) * count) {
-    ThrowInputError(params_path, ": holds ", count, " values (", params.size(),
-                    " bytes), expected ", model_count, " for the model in ", yaml_path,
-                    " (the files are damaged or from different saves)", kWhatToDo);
-  }
-  const char* p = params.data() + sizeof(kMagic) + sizeof(count);
-  model->ForEachBlock([&](const std::string&, double* data, int size) {
-    std::memcpy(data, p, sizeof(double) * size);
-    p += sizeof(double) * size;
-  });
+  ReadParameters(dir, yaml_path, expected_count, model.get());
   if (root_correction != kRootCorrectionObjectSide) ObjectSideRootCorrections(model.get());
   return model;
 }

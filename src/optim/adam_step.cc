@@ -94,9 +94,9 @@ std::vector<double> TangentGradient(const StepContext& c, const std::vector<doub
 
 }  // namespace
 
-double LearningRate(const AdamConfig& a, int iteration, int iterations) {
+double LearningRate(const AdamConfig& a, int batch, int batches) {
   if (a.schedule == LrSchedule::kConstant) return a.lr;
-  const double x = iterations > 1 ? static_cast<double>(iteration) / (iterations - 1) : 1.0;
+  const double x = batches > 1 ? static_cast<double>(batch) / (batches - 1) : 1.0;
   if (x < a.warmup_fraction) {
     const double s = a.warmup_fraction > 0 ? x / a.warmup_fraction : 1.0;
     return a.lr * (0.04 + 0.96 * s);
@@ -125,7 +125,7 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
   }
   ceres::Problem& problem = sp.problem();
   const AdamConfig& a = c.stage->adam;
-  const double lr = LearningRate(a, c.iteration, c.stage->iterations);
+  const double lr = LearningRate(a, c.iteration, c.stage->batches);
   size_t offset = 0;
   for (double* p : blocks) {
     const ceres::Manifold* manifold = problem.GetManifold(p);

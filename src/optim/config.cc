@@ -118,7 +118,7 @@ void VisitFields(V& v, PoseSolveConfig& o) {
 template <class V>
 void VisitFields(V& v, StageConfig& o) {
   v("name", o.name);
-  v("iterations", o.iterations);
+  v("batches", o.batches);
   v("step_rule", o.step_rule);
   v("batch_rays", o.batch_rays);
   v("samples_per_ray", o.samples_per_ray);
@@ -415,6 +415,32 @@ int LineOfKey(std::string key, const std::map<std::string, int>& lines) {
   return 0;
 }
 
+// The old key of StageConfig::batches, read as a deprecated alias.
+constexpr const char* kOldBatchesKey = "iterations";
+
+// A stage map (`defaults:` or `stages[i]`) with the deprecated key
+// `iterations` renamed to `batches` (a warning names the key); both keys in
+// one map are an error. Other maps are returned as they are.
+YAML::Node RenameDeprecatedStageKeys(const std::string& source, const std::string& path,
+                                     const YAML::Node& node) {
+  if (!node.IsMap() || !node[kOldBatchesKey]) return node;
+  const std::string old_key = Join(path, kOldBatchesKey);
+  if (node["batches"]) {
+    ThrowInputError(source, ": key '", old_key, "'", LineOf(node[kOldBatchesKey]),
+                    ": the old name of '", Join(path, "batches"),
+                    "', which is also given; keep only 'batches'");
+  }
+  LOG(WARNING) << source << ": key '" << old_key << "'" << LineOf(node[kOldBatchesKey])
+               << " is deprecated: use 'batches' (the stage's minibatches; 'iterations' now "
+                  "only counts solver iterations, e.g. lm.iterations_per_batch)";
+  YAML::Node renamed(YAML::NodeType::Map);
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const bool old = it->first.IsScalar() && it->first.Scalar() == kOldBatchesKey;
+    renamed[old ? YAML::Node("batches") : it->first] = it->second;
+  }
+  return renamed;
+}
+
 // ---- Writing. ----
 
 class FieldWriter {
@@ -529,7 +555,7 @@ void CheckLoss(const Checker& c, const std::string& key, const LossConfig& loss)
 
 void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   if (s.name.empty()) c.Fail(p + ".name", "expected a non-empty name");
-  c.Positive(p + ".iterations", s.iterations);
+  c.Positive(p + ".batches", s.batches);
   c.Positive(p + ".batch_rays", s.batch_rays);
   c.Positive(p + ".samples_per_ray", s.samples_per_ray);
 
@@ -660,7 +686,10 @@ SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& 
   if (root["threads"]) ReadValue(source, "threads", root["threads"], &config.threads);
 
   StageConfig base;
-  if (root["defaults"]) ReadStruct(source, "defaults", root["defaults"], &base);
+  if (root["defaults"]) {
+    ReadStruct(source, "defaults", RenameDeprecatedStageKeys(source, "defaults", root["defaults"]),
+               &base);
+  }
 
   const YAML::Node stages = root["stages"];
   if (!stages || stages.IsNull()) {
@@ -669,7 +698,8 @@ SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& 
   if (!stages.IsSequence()) TypeError(source, "stages", stages, "a list of stages");
   for (size_t i = 0; i < stages.size(); ++i) {
     StageConfig stage = base;
-    ReadStruct(source, "stages[" + std::to_string(i) + "]", stages[i], &stage);
+    const std::string path = "stages[" + std::to_string(i) + "]";
+    ReadStruct(source, path, RenameDeprecatedStageKeys(source, path, stages[i]), &stage);
     config.stages.push_back(std::move(stage));
   }
   try {

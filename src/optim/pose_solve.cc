@@ -26,7 +26,7 @@ double Median(std::vector<double> v) {
   return v[mid];
 }
 
-// One frame's pose problem: the frame's rays' render terms, every block but
+// One frame's pose problem: the frame's rays' composite terms, every block but
 // the frame's root correction constant, the batch without field Jacobians.
 class FramePoseProblem {
  public:

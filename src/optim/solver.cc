@@ -17,11 +17,11 @@
 #include "banmo/optim/pose_solve.h"
 #include "banmo/optim/ray_sampler.h"
 #include "banmo/optim/root_pose_error.h"
-#include "banmo/render/ray_samples.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
+#include "banmo/volume/ray_samples.h"
 #include "solver_state.h"
 #include "stage_problem.h"
 #include "step_rules.h"
@@ -173,11 +173,11 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   run.callback_start = c->callback_seconds;
   if (!options.quiet) {
     std::printf("[%s] stage %d/%zu: %d batches x %d rays, %d samples, step rule %s\n",
-                stage.name.c_str(), s + 1, config_.stages.size(), stage.iterations,
-                stage.batch_rays, stage.samples_per_ray, EnumName(stage.step_rule));
+                stage.name.c_str(), s + 1, config_.stages.size(), stage.batches, stage.batch_rays,
+                stage.samples_per_ray, EnumName(stage.step_rule));
     std::fflush(stdout);
   }
-  for (int it = run.start; it < stage.iterations; ++it) {
+  for (int it = run.start; it < stage.batches; ++it) {
     if (g_interrupted ||
         (options.stop_after_batches >= 0 && state->total_batches >= options.stop_after_batches)) {
       Save(s, it, c);
@@ -186,7 +186,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
         std::printf("[%s] stopped at batch %d; checkpoint written%s\n", stage.name.c_str(), it,
                     options.out_dir.empty() ? " (none: no --out)" : "");
       }
-      run.summary.iterations = it - run.start;
+      run.summary.batches = it - run.start;
       result->stages.push_back(run.summary);
       return false;
     }
@@ -194,7 +194,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   }
   sp.ClearMinibatch();
   StageSummary& summary = run.summary;
-  summary.iterations = stage.iterations - run.start;
+  summary.batches = stage.batches - run.start;
   summary.seconds = run.Seconds(*c);
   summary.rays_per_second = run.rays_done / std::max(summary.seconds, 1e-9);
   model_->ForEachBlock([&](const std::string&, double* data, int size) {
@@ -205,7 +205,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   Save(s + 1, 0, c);
   if (!options.quiet) {
     std::printf("[%s] done: %d batches in %.1f s (%.0f rays/s)%s\n", stage.name.c_str(),
-                summary.iterations, summary.seconds, summary.rays_per_second,
+                summary.batches, summary.seconds, summary.rays_per_second,
                 summary.finite ? "" : " -- NON-FINITE PARAMETERS");
     std::fflush(stdout);
   }
@@ -215,7 +215,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
 void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, SolveResult* result) {
   const StageConfig& stage = *run->stage;
   SolverState* state = c->state;
-  const double fraction = static_cast<double>(it) / std::max(1, stage.iterations);
+  const double fraction = static_cast<double>(it) / std::max(1, stage.batches);
   RunSchedules(it, fraction, *run, sp, c, result);
 
   // ---- The minibatch. ----
@@ -265,7 +265,7 @@ void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, So
   if (it == run->start) run->summary.first_losses = losses;
   run->summary.last_losses = losses;
   ReportBatch(it, *run, losses, *c);
-  const bool last = it + 1 == stage.iterations;
+  const bool last = it + 1 == stage.batches;
   if (stage.checkpoint_every > 0 && (it + 1) % stage.checkpoint_every == 0 && !last) {
     Save(run->index, it + 1, c);
   }
@@ -274,8 +274,8 @@ void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, So
     BatchProgress progress;
     progress.stage = run->index;
     progress.stage_name = stage.name;
-    progress.iteration = it + 1;
-    progress.stage_iterations = stage.iterations;
+    progress.batch = it + 1;
+    progress.stage_batches = stage.batches;
     progress.total_batches = state->total_batches;
     progress.solve_seconds = c->run_timer.Seconds() - c->callback_seconds;
     progress.losses = losses;
@@ -287,12 +287,12 @@ void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, So
 void Solver::ReportBatch(int it, const StageRun& run, const TermLosses& losses,
                          const RunContext& c) const {
   const StageConfig& stage = *run.stage;
-  const bool last = it + 1 == stage.iterations;
+  const bool last = it + 1 == stage.batches;
   if (c.options.quiet || !(it % std::max(1, stage.log_every) == 0 || last)) return;
   const double secs = run.Seconds(c);
   const double rate = run.rays_done / std::max(secs, 1e-9);
-  const double eta = (stage.iterations - it - 1) * stage.batch_rays / std::max(rate, 1e-9);
-  std::printf("[%s] %5d/%d", stage.name.c_str(), it + 1, stage.iterations);
+  const double eta = (stage.batches - it - 1) * stage.batch_rays / std::max(rate, 1e-9);
+  std::printf("[%s] %5d/%d", stage.name.c_str(), it + 1, stage.batches);
   double total = 0.0;
   for (const auto& [name, value] : losses) {
     std::printf(" %s=%.4g", name.c_str(), value);
@@ -345,7 +345,7 @@ void Solver::RunSchedules(int it, double fraction, const StageRun& run, StagePro
     RefreshBounds();
   }
   for (double at : stage.schedule.bone_reinit_at) {
-    if (model.num_bones() > 0 && it == static_cast<int>(std::lround(at * stage.iterations))) {
+    if (model.num_bones() > 0 && it == static_cast<int>(std::lround(at * stage.batches))) {
       ReinitializeBones(c->state);
     }
   }
@@ -353,13 +353,13 @@ void Solver::RunSchedules(int it, double fraction, const StageRun& run, StagePro
   const AutoSizeOptions& auto_size = config_.model.auto_size;
   for (double at : auto_size.grow_at) {
     if (!auto_size.enabled || run.index != 0 ||
-        it != static_cast<int>(std::lround(at * stage.iterations))) {
+        it != static_cast<int>(std::lround(at * stage.batches))) {
       continue;
     }
     Grow(it, run, sp, c, result);
   }
   for (double at : stage.pose_solve.at) {
-    if (it == static_cast<int>(std::lround(at * stage.iterations))) {
+    if (it == static_cast<int>(std::lround(at * stage.batches))) {
       SolvePoses(it, run, sp, c, result);
     }
   }

@@ -28,7 +28,7 @@ struct StepContext {
 // The learning rate of batch `iteration` of `iterations` (a.schedule).
 // One-cycle (Smith 2018, as in BANMo's training): linear warm-up from lr/25
 // to lr over warmup_fraction, then cosine decay to lr * final_lr_fraction.
-double LearningRate(const AdamConfig& a, int iteration, int iterations);
+double LearningRate(const AdamConfig& a, int batch, int batches);
 
 // AdamW on `blocks` (tangent-space steps through each block's manifold).
 // after_gradient (optional) runs once the gradient is known and before the

@@ -268,36 +268,36 @@ class YamlReader {
   std::string source_;
 };
 
-}  // namespace
+// The `mesh:` section: meshing and appearance settings.
+struct MeshSettings {
+  double cell_size = 0;
+  double blend_radius = 0;
+  double skin_blend = 0;
+  double pattern_frequency = 0;
+  double pattern_strength = 0;
+};
 
-Rig BuildProceduralRig(const std::string& yaml_text, const std::string& source) {
-  YamlReader r(source);
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    r.Fail("cannot parse YAML: ", e.what());
-  }
-  r.CheckKeys(root, "top level", {"name", "mesh", "joints", "shapes", "animation"});
-  Rig rig;
-  rig.name = r.String(r.Required(root, "name", "top level"), "name");
-
-  // Meshing and appearance settings.
+MeshSettings ReadMeshSettings(const YamlReader& r, const YAML::Node& root) {
   const YAML::Node mesh_node = r.Required(root, "mesh", "top level");
   r.CheckKeys(mesh_node, "mesh",
               {"cell_size", "blend_radius", "skin_blend", "pattern_frequency", "pattern_strength"});
-  const double cell_size = r.Number(r.Required(mesh_node, "cell_size", "mesh"), "mesh.cell_size");
-  const double blend = r.NumberOr(mesh_node, "blend_radius", "mesh", 0.0);
-  const double skin_blend = r.NumberOr(mesh_node, "skin_blend", "mesh", 0.05);
-  const double pattern_frequency = r.NumberOr(mesh_node, "pattern_frequency", "mesh", 4.0);
-  const double pattern_strength = r.NumberOr(mesh_node, "pattern_strength", "mesh", 0.3);
-  if (!(cell_size > 0)) r.Fail("mesh.cell_size: expected > 0");
-  if (blend < 0) r.Fail("mesh.blend_radius: expected >= 0");
-  if (!(skin_blend > 0)) r.Fail("mesh.skin_blend: expected > 0");
-  if (pattern_strength < 0 || pattern_strength > 1)
+  MeshSettings m;
+  m.cell_size = r.Number(r.Required(mesh_node, "cell_size", "mesh"), "mesh.cell_size");
+  m.blend_radius = r.NumberOr(mesh_node, "blend_radius", "mesh", 0.0);
+  m.skin_blend = r.NumberOr(mesh_node, "skin_blend", "mesh", 0.05);
+  m.pattern_frequency = r.NumberOr(mesh_node, "pattern_frequency", "mesh", 4.0);
+  m.pattern_strength = r.NumberOr(mesh_node, "pattern_strength", "mesh", 0.3);
+  if (!(m.cell_size > 0)) r.Fail("mesh.cell_size: expected > 0");
+  if (m.blend_radius < 0) r.Fail("mesh.blend_radius: expected >= 0");
+  if (!(m.skin_blend > 0)) r.Fail("mesh.skin_blend: expected > 0");
+  if (m.pattern_strength < 0 || m.pattern_strength > 1)
     r.Fail("mesh.pattern_strength: expected [0, 1]");
+  return m;
+}
 
-  // Joints: rest positions in rig space, identity rest rotations.
+// The `joints:` section: one node and one influence per joint (rest positions
+// in rig space, identity rest rotations). Returns the joint index by name.
+std::map<std::string, int> ReadJoints(const YamlReader& r, const YAML::Node& root, Rig* rig) {
   const YAML::Node joints = r.Required(root, "joints", "top level");
   if (!joints.IsSequence() || joints.size() == 0) r.Fail("joints: expected a non-empty list");
   std::map<std::string, int> joint_index;
@@ -321,61 +321,77 @@ Rig BuildProceduralRig(const std::string& yaml_text, const std::string& source) 
     } else {
       node.translation = pos;
     }
-    joint_index[node.name] = static_cast<int>(rig.nodes.size());
+    joint_index[node.name] = static_cast<int>(rig->nodes.size());
     joint_position.push_back(pos);
-    rig.nodes.push_back(node);
+    rig->nodes.push_back(node);
     RigInfluence inf;
-    inf.node = static_cast<int>(rig.nodes.size()) - 1;
+    inf.node = static_cast<int>(rig->nodes.size()) - 1;
     inf.inverse_bind.topRightCorner<3, 1>() = -pos;
-    rig.influences.push_back(inf);
+    rig->influences.push_back(inf);
   }
-  auto find_joint = [&](const YAML::Node& node, const std::string& where) {
-    const std::string name = r.String(node, where);
-    auto it = joint_index.find(name);
-    if (it == joint_index.end()) r.Fail(where, ": unknown joint '", name, "'");
-    return it->second;
-  };
+  return joint_index;
+}
 
-  // Shapes.
+int FindJoint(const YamlReader& r, const std::map<std::string, int>& joint_index,
+              const YAML::Node& node, const std::string& where) {
+  const std::string name = r.String(node, where);
+  auto it = joint_index.find(name);
+  if (it == joint_index.end()) r.Fail(where, ": unknown joint '", name, "'");
+  return it->second;
+}
+
+// One entry of `shapes:` (at `where`): an ellipsoid or a capsule.
+Shape ReadShape(const YamlReader& r, const std::map<std::string, int>& joint_index,
+                const YAML::Node& s, const std::string& where) {
+  r.CheckKeys(
+      s, where,
+      {"joint", "type", "center", "radii", "rotation_deg", "from", "to", "radius", "color"});
+  Shape shape;
+  shape.joint = FindJoint(r, joint_index, r.Required(s, "joint", where), where + ".joint");
+  const std::string type = r.String(r.Required(s, "type", where), where + ".type");
+  if (type == "ellipsoid") {
+    shape.center = r.Vec3(r.Required(s, "center", where), where + ".center");
+    shape.radii = r.Vec3(r.Required(s, "radii", where), where + ".radii");
+    if (!(shape.radii.minCoeff() > 0)) r.Fail(where, ".radii: expected positive radii");
+    const Eigen::Vector3d euler =
+        r.Vec3Or(s, "rotation_deg", where, Eigen::Vector3d::Zero()) * M_PI / 180;
+    shape.axes = (Eigen::AngleAxisd(euler[2], Eigen::Vector3d::UnitZ()) *
+                  Eigen::AngleAxisd(euler[1], Eigen::Vector3d::UnitY()) *
+                  Eigen::AngleAxisd(euler[0], Eigen::Vector3d::UnitX()))
+                     .toRotationMatrix();
+  } else if (type == "capsule") {
+    shape.capsule = true;
+    shape.from = r.Vec3(r.Required(s, "from", where), where + ".from");
+    shape.to = r.Vec3(r.Required(s, "to", where), where + ".to");
+    shape.radius = r.Number(r.Required(s, "radius", where), where + ".radius");
+    if (!(shape.radius > 0)) r.Fail(where, ".radius: expected > 0");
+  } else {
+    r.Fail(where, ".type: expected 'ellipsoid' or 'capsule', found '", type, "'");
+  }
+  shape.color = r.Vec3Or(s, "color", where, shape.color);
+  if (shape.color.minCoeff() < 0 || shape.color.maxCoeff() > 1)
+    r.Fail(where, ".color: expected values in [0, 1]");
+  return shape;
+}
+
+std::vector<Shape> ReadShapes(const YamlReader& r, const YAML::Node& root,
+                              const std::map<std::string, int>& joint_index) {
   const YAML::Node shapes_node = r.Required(root, "shapes", "top level");
   if (!shapes_node.IsSequence() || shapes_node.size() == 0)
     r.Fail("shapes: expected a non-empty list");
   std::vector<Shape> shapes;
   for (size_t i = 0; i < shapes_node.size(); ++i) {
-    const std::string where = "shapes[" + std::to_string(i) + "]";
-    const YAML::Node s = shapes_node[i];
-    r.CheckKeys(
-        s, where,
-        {"joint", "type", "center", "radii", "rotation_deg", "from", "to", "radius", "color"});
-    Shape shape;
-    shape.joint = find_joint(r.Required(s, "joint", where), where + ".joint");
-    const std::string type = r.String(r.Required(s, "type", where), where + ".type");
-    if (type == "ellipsoid") {
-      shape.center = r.Vec3(r.Required(s, "center", where), where + ".center");
-      shape.radii = r.Vec3(r.Required(s, "radii", where), where + ".radii");
-      if (!(shape.radii.minCoeff() > 0)) r.Fail(where, ".radii: expected positive radii");
-      const Eigen::Vector3d euler =
-          r.Vec3Or(s, "rotation_deg", where, Eigen::Vector3d::Zero()) * M_PI / 180;
-      shape.axes = (Eigen::AngleAxisd(euler[2], Eigen::Vector3d::UnitZ()) *
-                    Eigen::AngleAxisd(euler[1], Eigen::Vector3d::UnitY()) *
-                    Eigen::AngleAxisd(euler[0], Eigen::Vector3d::UnitX()))
-                       .toRotationMatrix();
-    } else if (type == "capsule") {
-      shape.capsule = true;
-      shape.from = r.Vec3(r.Required(s, "from", where), where + ".from");
-      shape.to = r.Vec3(r.Required(s, "to", where), where + ".to");
-      shape.radius = r.Number(r.Required(s, "radius", where), where + ".radius");
-      if (!(shape.radius > 0)) r.Fail(where, ".radius: expected > 0");
-    } else {
-      r.Fail(where, ".type: expected 'ellipsoid' or 'capsule', found '", type, "'");
-    }
-    shape.color = r.Vec3Or(s, "color", where, shape.color);
-    if (shape.color.minCoeff() < 0 || shape.color.maxCoeff() > 1)
-      r.Fail(where, ".color: expected values in [0, 1]");
-    shapes.push_back(shape);
+    shapes.push_back(
+        ReadShape(r, joint_index, shapes_node[i], "shapes[" + std::to_string(i) + "]"));
   }
+  return shapes;
+}
 
-  // Surface.
+// The rest surface: the shapes' smooth union, meshed and projected onto its
+// zero level set, into rig->rest_vertices and rig->faces.
+void MeshShapes(const YamlReader& r, const std::vector<Shape>& shapes, const MeshSettings& m,
+                Rig* rig) {
+  const double blend = m.blend_radius, cell_size = m.cell_size;
   auto sdf = [&](const Eigen::Vector3d& p) {
     double d = shapes[0].Sdf(p);
     for (size_t i = 1; i < shapes.size(); ++i) d = SmoothMin(d, shapes[i].Sdf(p), blend);
@@ -388,64 +404,157 @@ Rig BuildProceduralRig(const std::string& yaml_text, const std::string& source) 
   if (cells > 4e7) r.Fail("mesh.cell_size: too small for the shapes (", cells, " grid cells)");
   TriangleMesh surface = MeshLevelSet(sdf, lo - margin, hi + margin, cell_size);
   if (surface.NumFaces() == 0) r.Fail("the shapes produce an empty surface");
-  rig.rest_vertices = surface.vertices;
-  rig.faces = surface.faces;
-  const int nv = rig.NumVertices();
+  rig->rest_vertices = surface.vertices;
+  rig->faces = surface.faces;
+}
 
-  // Skin weights and colours.
-  rig.vertex_influences.setConstant(kMaxVertexInfluences, nv, -1);
-  rig.vertex_weights.setZero(kMaxVertexInfluences, nv);
-  rig.vertex_colors.resize(3, nv);
-  const int nj = static_cast<int>(rig.nodes.size());
+// Skinning of rest vertex i into rig->vertex_influences / vertex_weights: the
+// 4 joints nearest by their shapes' SDF, softmax weights exp(-d / skin_blend).
+// `dj` (per joint) and `ds` (per shape, the SDFs at the vertex, kept for the
+// colour) and `order` are scratch; returns the smallest shape SDF.
+double SkinVertex(const std::vector<Shape>& shapes, double skin_blend, int i,
+                  std::vector<double>* dj, std::vector<double>* ds,
+                  std::vector<std::pair<double, int>>* order, Rig* rig) {
+  const int nj = static_cast<int>(rig->nodes.size());
+  const Eigen::Vector3d p = rig->rest_vertices.col(i);
+  std::fill(dj->begin(), dj->end(), std::numeric_limits<double>::infinity());
+  double dmin = std::numeric_limits<double>::infinity();
+  for (size_t s = 0; s < shapes.size(); ++s) {
+    (*ds)[s] = shapes[s].Sdf(p);
+    (*dj)[shapes[s].joint] = std::min((*dj)[shapes[s].joint], (*ds)[s]);
+    dmin = std::min(dmin, (*ds)[s]);
+  }
+  for (int j = 0; j < nj; ++j) (*order)[j] = {std::exp(-((*dj)[j] - dmin) / skin_blend), j};
+  std::partial_sort(order->begin(), order->begin() + std::min(4, nj), order->end(),
+                    [](const auto& a, const auto& b) { return a.first > b.first; });
+  double sum = 0;
+  for (int k = 0; k < std::min(4, nj); ++k) sum += (*order)[k].first;
+  for (int k = 0; k < std::min(4, nj); ++k) {
+    rig->vertex_influences(k, i) = (*order)[k].second;
+    rig->vertex_weights(k, i) = static_cast<float>((*order)[k].first / sum);
+  }
+  return dmin;
+}
+
+// Colour at rest point p: the shapes' colours blended with sharper weights
+// than the skinning (ds: the shapes' SDFs at p, dmin their minimum), times a
+// fixed sinusoidal pattern.
+Eigen::Vector3d VertexColour(const std::vector<Shape>& shapes, const MeshSettings& m,
+                             const Eigen::Vector3d& p, const std::vector<double>& ds, double dmin) {
   // Pattern directions (fixed): three per colour channel.
   const Eigen::Vector3d dirs[3] = {Eigen::Vector3d(0.8, 0.5, 0.3).normalized(),
                                    Eigen::Vector3d(-0.3, 0.9, 0.4).normalized(),
                                    Eigen::Vector3d(0.2, -0.4, 0.9).normalized()};
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  double csum = 0;
+  for (size_t s = 0; s < shapes.size(); ++s) {
+    const double w = std::exp(-(ds[s] - dmin) / (0.5 * m.skin_blend));
+    c += w * shapes[s].color;
+    csum += w;
+  }
+  c /= csum;
+  for (int ch = 0; ch < 3; ++ch) {
+    const double wave = std::sin(m.pattern_frequency * dirs[ch].dot(p) * 2 * M_PI + ch) *
+                        std::cos(m.pattern_frequency * 0.7 * dirs[(ch + 1) % 3].dot(p) * 2 * M_PI);
+    c[ch] = std::clamp(c[ch] * (1 - m.pattern_strength + m.pattern_strength * (0.5 + 0.5 * wave)) +
+                           0.15 * m.pattern_strength * wave,
+                       0.0, 1.0);
+  }
+  return c;
+}
+
+// Skin weights, vertex colours and the one material of the meshed rig.
+void SkinAndColour(const std::vector<Shape>& shapes, const MeshSettings& m, Rig* rig) {
+  const int nv = rig->NumVertices();
+  rig->vertex_influences.setConstant(kMaxVertexInfluences, nv, -1);
+  rig->vertex_weights.setZero(kMaxVertexInfluences, nv);
+  rig->vertex_colors.resize(3, nv);
+  const int nj = static_cast<int>(rig->nodes.size());
   ParallelFor(nv, [&](int begin, int end) {
     std::vector<double> dj(nj), ds(shapes.size());
     std::vector<std::pair<double, int>> order(nj);
     for (int i = begin; i < end; ++i) {
-      const Eigen::Vector3d p = rig.rest_vertices.col(i);
-      std::fill(dj.begin(), dj.end(), std::numeric_limits<double>::infinity());
-      double dmin = std::numeric_limits<double>::infinity();
-      for (size_t s = 0; s < shapes.size(); ++s) {
-        ds[s] = shapes[s].Sdf(p);
-        dj[shapes[s].joint] = std::min(dj[shapes[s].joint], ds[s]);
-        dmin = std::min(dmin, ds[s]);
-      }
-      for (int j = 0; j < nj; ++j) order[j] = {std::exp(-(dj[j] - dmin) / skin_blend), j};
-      std::partial_sort(order.begin(), order.begin() + std::min(4, nj), order.end(),
-                        [](const auto& a, const auto& b) { return a.first > b.first; });
-      double sum = 0;
-      for (int k = 0; k < std::min(4, nj); ++k) sum += order[k].first;
-      for (int k = 0; k < std::min(4, nj); ++k) {
-        rig.vertex_influences(k, i) = order[k].second;
-        rig.vertex_weights(k, i) = static_cast<float>(order[k].first / sum);
-      }
-      // Colour: shapes blended with sharper weights, times the pattern.
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      double csum = 0;
-      for (size_t s = 0; s < shapes.size(); ++s) {
-        const double w = std::exp(-(ds[s] - dmin) / (0.5 * skin_blend));
-        c += w * shapes[s].color;
-        csum += w;
-      }
-      c /= csum;
-      for (int ch = 0; ch < 3; ++ch) {
-        const double wave =
-            std::sin(pattern_frequency * dirs[ch].dot(p) * 2 * M_PI + ch) *
-            std::cos(pattern_frequency * 0.7 * dirs[(ch + 1) % 3].dot(p) * 2 * M_PI);
-        c[ch] = std::clamp(c[ch] * (1 - pattern_strength + pattern_strength * (0.5 + 0.5 * wave)) +
-                               0.15 * pattern_strength * wave,
-                           0.0, 1.0);
-      }
-      rig.vertex_colors.col(i) = c.cast<float>();
+      const double dmin = SkinVertex(shapes, m.skin_blend, i, &dj, &ds, &order, rig);
+      rig->vertex_colors.col(i) =
+          VertexColour(shapes, m, rig->rest_vertices.col(i), ds, dmin).cast<float>();
     }
   });
-  rig.face_material.assign(rig.NumFaces(), 0);
-  rig.materials.push_back(RigMaterial{});
+  rig->face_material.assign(rig->NumFaces(), 0);
+  rig->materials.push_back(RigMaterial{});
+}
 
-  // Animation.
+// One entry of `animation.channels:` (at `where`).
+MotionTerm ReadMotionTerm(const YamlReader& r, const std::map<std::string, int>& joint_index,
+                          const YAML::Node& c, const std::string& where) {
+  r.CheckKeys(c, where,
+              {"joint", "axis", "offset_deg", "amplitude_deg", "translation", "translation_offset",
+               "phase", "cycles"});
+  MotionTerm t;
+  t.joint = FindJoint(r, joint_index, r.Required(c, "joint", where), where + ".joint");
+  t.phase = r.NumberOr(c, "phase", where, 0);
+  const double cycles = r.NumberOr(c, "cycles", where, 1);
+  t.cycles = static_cast<int>(cycles);
+  if (t.cycles < 1 || t.cycles != cycles)
+    r.Fail(where, ".cycles: expected an integer >= 1 (loops)");
+  const bool has_rot = c["axis"] || c["amplitude_deg"] || c["offset_deg"];
+  const bool has_trans = c["translation"] || c["translation_offset"];
+  if (has_rot == has_trans) r.Fail(where, ": expected either axis/amplitude_deg or translation");
+  if (has_rot) {
+    t.axis = r.Vec3(r.Required(c, "axis", where), where + ".axis");
+    if (!(t.axis.norm() > 0)) r.Fail(where, ".axis: expected a non-zero vector");
+    t.axis.normalize();
+    t.offset = r.NumberOr(c, "offset_deg", where, 0) * M_PI / 180;
+    t.amplitude = r.NumberOr(c, "amplitude_deg", where, 0) * M_PI / 180;
+  } else {
+    t.rotation = false;
+    t.amplitude_t = r.Vec3Or(c, "translation", where, Eigen::Vector3d::Zero());
+    t.offset_t = r.Vec3Or(c, "translation_offset", where, Eigen::Vector3d::Zero());
+  }
+  return t;
+}
+
+// Joint j's rotation and translation channels sampled at keys + 1 times over
+// `duration` (only the channels its terms move are appended).
+void SampleJointChannels(const std::vector<MotionTerm>& terms, const RigNode& node, int j,
+                         double duration, int keys, Animation* animation) {
+  bool rot = false, trans = false;
+  for (const auto& t : terms) {
+    if (t.joint != j) continue;
+    rot = rot || t.rotation;
+    trans = trans || !t.rotation;
+  }
+  if (!rot && !trans) return;
+  AnimationChannel rc, tc;
+  rc.node = tc.node = j;
+  rc.path = ChannelPath::kRotation;
+  tc.path = ChannelPath::kTranslation;
+  rc.values.resize(4, keys + 1);
+  tc.values.resize(3, keys + 1);
+  for (int k = 0; k <= keys; ++k) {
+    const double time = duration * k / keys;
+    Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+    Eigen::Vector3d tr = node.translation;
+    for (const auto& t : terms) {
+      if (t.joint != j) continue;
+      const double s = std::sin(2 * M_PI * (t.cycles * time / duration + t.phase));
+      if (t.rotation) {
+        q = q * Eigen::Quaterniond(Eigen::AngleAxisd(t.offset + t.amplitude * s, t.axis));
+      } else {
+        tr += t.offset_t + t.amplitude_t * s;
+      }
+    }
+    rc.times.push_back(time);
+    tc.times.push_back(time);
+    rc.values.col(k) << q.x(), q.y(), q.z(), q.w();
+    tc.values.col(k) = tr;
+  }
+  if (rot) animation->channels.push_back(rc);
+  if (trans) animation->channels.push_back(tc);
+}
+
+// The `animation:` section: sinusoidal motion terms sampled into keyframes.
+Animation ReadAnimation(const YamlReader& r, const YAML::Node& root,
+                        const std::map<std::string, int>& joint_index, const Rig& rig) {
   const YAML::Node anim = r.Required(root, "animation", "top level");
   r.CheckKeys(anim, "animation", {"name", "duration", "keys", "channels"});
   Animation animation;
@@ -460,70 +569,34 @@ Rig BuildProceduralRig(const std::string& yaml_text, const std::string& source) 
   std::vector<MotionTerm> terms;
   for (size_t i = 0; i < channels.size(); ++i) {
     const std::string where = "animation.channels[" + std::to_string(i) + "]";
-    const YAML::Node c = channels[i];
-    r.CheckKeys(c, where,
-                {"joint", "axis", "offset_deg", "amplitude_deg", "translation",
-                 "translation_offset", "phase", "cycles"});
-    MotionTerm t;
-    t.joint = find_joint(r.Required(c, "joint", where), where + ".joint");
-    t.phase = r.NumberOr(c, "phase", where, 0);
-    const double cycles = r.NumberOr(c, "cycles", where, 1);
-    t.cycles = static_cast<int>(cycles);
-    if (t.cycles < 1 || t.cycles != cycles)
-      r.Fail(where, ".cycles: expected an integer >= 1 (loops)");
-    const bool has_rot = c["axis"] || c["amplitude_deg"] || c["offset_deg"];
-    const bool has_trans = c["translation"] || c["translation_offset"];
-    if (has_rot == has_trans) r.Fail(where, ": expected either axis/amplitude_deg or translation");
-    if (has_rot) {
-      t.axis = r.Vec3(r.Required(c, "axis", where), where + ".axis");
-      if (!(t.axis.norm() > 0)) r.Fail(where, ".axis: expected a non-zero vector");
-      t.axis.normalize();
-      t.offset = r.NumberOr(c, "offset_deg", where, 0) * M_PI / 180;
-      t.amplitude = r.NumberOr(c, "amplitude_deg", where, 0) * M_PI / 180;
-    } else {
-      t.rotation = false;
-      t.amplitude_t = r.Vec3Or(c, "translation", where, Eigen::Vector3d::Zero());
-      t.offset_t = r.Vec3Or(c, "translation_offset", where, Eigen::Vector3d::Zero());
-    }
-    terms.push_back(t);
+    terms.push_back(ReadMotionTerm(r, joint_index, channels[i], where));
   }
-  for (int j = 0; j < nj; ++j) {
-    bool rot = false, trans = false;
-    for (const auto& t : terms) {
-      if (t.joint != j) continue;
-      rot = rot || t.rotation;
-      trans = trans || !t.rotation;
-    }
-    if (!rot && !trans) continue;
-    AnimationChannel rc, tc;
-    rc.node = tc.node = j;
-    rc.path = ChannelPath::kRotation;
-    tc.path = ChannelPath::kTranslation;
-    rc.values.resize(4, keys + 1);
-    tc.values.resize(3, keys + 1);
-    for (int k = 0; k <= keys; ++k) {
-      const double time = duration * k / keys;
-      Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
-      Eigen::Vector3d tr = rig.nodes[j].translation;
-      for (const auto& t : terms) {
-        if (t.joint != j) continue;
-        const double s = std::sin(2 * M_PI * (t.cycles * time / duration + t.phase));
-        if (t.rotation) {
-          q = q * Eigen::Quaterniond(Eigen::AngleAxisd(t.offset + t.amplitude * s, t.axis));
-        } else {
-          tr += t.offset_t + t.amplitude_t * s;
-        }
-      }
-      rc.times.push_back(time);
-      tc.times.push_back(time);
-      rc.values.col(k) << q.x(), q.y(), q.z(), q.w();
-      tc.values.col(k) = tr;
-    }
-    if (rot) animation.channels.push_back(rc);
-    if (trans) animation.channels.push_back(tc);
+  for (int j = 0; j < static_cast<int>(rig.nodes.size()); ++j) {
+    SampleJointChannels(terms, rig.nodes[j], j, duration, keys, &animation);
   }
   if (animation.channels.empty()) r.Fail("animation.channels: expected at least one channel");
-  rig.animations.push_back(animation);
+  return animation;
+}
+
+}  // namespace
+
+Rig BuildProceduralRig(const std::string& yaml_text, const std::string& source) {
+  YamlReader r(source);
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    r.Fail("cannot parse YAML: ", e.what());
+  }
+  r.CheckKeys(root, "top level", {"name", "mesh", "joints", "shapes", "animation"});
+  Rig rig;
+  rig.name = r.String(r.Required(root, "name", "top level"), "name");
+  const MeshSettings mesh = ReadMeshSettings(r, root);
+  const std::map<std::string, int> joint_index = ReadJoints(r, root, &rig);
+  const std::vector<Shape> shapes = ReadShapes(r, root, joint_index);
+  MeshShapes(r, shapes, mesh, &rig);
+  SkinAndColour(shapes, mesh, &rig);
+  rig.animations.push_back(ReadAnimation(r, root, joint_index, rig));
   const std::string problem = rig.Validate();
   if (!problem.empty()) r.Fail(problem);
   return rig;

@@ -364,19 +364,9 @@ FlowSample ComputeFlow(const PinholeCamera& camera, const Eigen::Matrix3Xi& face
   return s;
 }
 
-}  // namespace
-
-SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
-                                const std::function<void(int, int)>& progress) {
-  const ScenePlan plan = PlanScene(rig, options);
-  const PinholeCamera& camera = plan.camera;
-  const int w = camera.width, h = camera.height;
-  const int nvid = options.num_videos, nfr = options.frames_per_video;
-  const FeatureEmbedding embedding;
+// Ground-truth mesh colours: the rig's vertex colours as bytes.
+Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> GroundTruthColours(const Rig& rig) {
   const Eigen::Matrix3Xf vertex_colors = RigVertexColors(rig);
-  Eigen::Matrix3Xd rest_root = rig.rest_vertices;
-  rest_root.colwise() -= plan.normalization.center;
-  rest_root *= plan.normalization.scale;
   Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> gt_colors(3, rig.NumVertices());
   for (int i = 0; i < rig.NumVertices(); ++i) {
     for (int k = 0; k < 3; ++k) {
@@ -384,150 +374,223 @@ SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
           static_cast<std::uint8_t>(std::lround(std::clamp(vertex_colors(k, i), 0.0f, 1.0f) * 255));
     }
   }
-  const Eigen::Vector3d light = options.light_in_camera.normalized();
-  const bool textured = rig.uvs.cols() == rig.NumVertices();
+  return gt_colors;
+}
+
+// What every frame's pictures are made from.
+struct FrameImaging {
+  const Rig& rig;
+  const SynthOptions& options;
+  const PinholeCamera& camera;
+  const FeatureEmbedding& embedding;
+  Eigen::Matrix3Xd rest_root;  // rest vertices in the normalised root frame
+  Eigen::Vector3d light;       // unit, camera coordinates
+  bool textured = false;       // the rig has a UV per vertex
+};
+
+// The colour of the surface point (face, barycentrics b) of frame geometry g:
+// vertex colour x material (x texture at the interpolated UV), Lambert +
+// ambient shading with the normal turned towards the camera.
+cv::Vec3b ShadePoint(const FrameImaging& im, const FrameGeometry& g, int face,
+                     const Eigen::Vector3d& b) {
+  const Rig& rig = im.rig;
+  const int i0 = rig.faces(0, face), i1 = rig.faces(1, face), i2 = rig.faces(2, face);
+  const RigMaterial& mat = rig.materials[rig.face_material[face]];
+  Eigen::Vector3f c = (b[0] * rig.vertex_colors.col(i0).cast<double>() +
+                       b[1] * rig.vertex_colors.col(i1).cast<double>() +
+                       b[2] * rig.vertex_colors.col(i2).cast<double>())
+                          .cast<float>();
+  c = c.cwiseProduct(mat.base_color.head<3>().cast<float>());
+  if (mat.texture >= 0 && im.textured) {
+    const Eigen::Vector2d uv = b[0] * rig.uvs.col(i0).cast<double>() +
+                               b[1] * rig.uvs.col(i1).cast<double>() +
+                               b[2] * rig.uvs.col(i2).cast<double>();
+    c = c.cwiseProduct(SampleTexture(rig.textures[mat.texture], static_cast<float>(uv[0]),
+                                     static_cast<float>(uv[1])));
+  }
+  Eigen::Vector3d n =
+      b[0] * g.normals.col(i0) + b[1] * g.normals.col(i1) + b[2] * g.normals.col(i2);
+  const Eigen::Vector3d point =
+      b[0] * g.vertices.col(i0) + b[1] * g.vertices.col(i1) + b[2] * g.vertices.col(i2);
+  if (n.dot(point) > 0) n = -n;
+  const double len = n.norm();
+  const double lambert = len > 0 ? std::max(0.0, n.dot(im.light) / len) : 0.0;
+  const double shade = im.options.ambient + (1 - im.options.ambient) * lambert;
+  cv::Vec3b px;
+  for (int k = 0; k < 3; ++k) {
+    px[k] = static_cast<unsigned char>(std::lround(std::clamp(c[k] * shade, 0.0, 1.0) * 255));
+  }
+  return px;
+}
+
+// The feature of the surface point (face, b): the embedding of its rest-pose
+// point, plus noise drawn from rng.
+FeatureVector PointFeature(const FrameImaging& im, int face, const Eigen::Vector3d& b,
+                           std::mt19937_64* rng) {
+  const Rig& rig = im.rig;
+  const int i0 = rig.faces(0, face), i1 = rig.faces(1, face), i2 = rig.faces(2, face);
+  const Eigen::Vector3d rest =
+      b[0] * im.rest_root.col(i0) + b[1] * im.rest_root.col(i1) + b[2] * im.rest_root.col(i2);
+  FeatureVector e = im.embedding(rest);
+  if (im.options.feature_noise > 0) {
+    for (int k = 0; k < kFeatureDim; ++k) e[k] += im.options.feature_noise * NormalDraw(*rng);
+    e.normalize();
+  }
+  return e;
+}
+
+// RGB, mask, depth and features of frame f of video v (geometry g).
+void RenderFrameImages(const FrameImaging& im, int v, int f, const FrameGeometry& g, Frame* frame) {
+  const SynthOptions& options = im.options;
+  const int w = im.camera.width, h = im.camera.height;
+  frame->rgb.create(h, w, CV_8UC3);
+  frame->rgb.setTo(cv::Scalar(options.background[0], options.background[1], options.background[2]));
+  frame->mask.create(h, w, CV_8UC1);
+  frame->mask.setTo(kMaskBackground);
+  frame->depth = g.raster.depth.clone();
+  cv::Mat features(h, w, CV_32FC(kFeatureDim), cv::Scalar::all(0));
+  std::mt19937_64 rng(MixSeed(options.seed, 3, v, f));
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int face = g.raster.face.at<int>(y, x);
+      if (face < 0) continue;
+      frame->mask.at<unsigned char>(y, x) = kMaskObject;
+      const Eigen::Vector3d b = g.raster.Barycentrics(x, y);
+      frame->rgb.at<cv::Vec3b>(y, x) = ShadePoint(im, g, face, b);
+      const FeatureVector e = PointFeature(im, face, b, &rng);
+      float* out = features.ptr<float>(y) + static_cast<size_t>(x) * kFeatureDim;
+      for (int k = 0; k < kFeatureDim; ++k) out[k] = static_cast<float>(e[k]);
+    }
+  }
+  features.convertTo(frame->features, CV_16F);
+}
+
+// Flow of frame f to f + gap and f - gap for every gap where that frame
+// exists (geometry: every frame of the video).
+void RenderFrameFlows(const FrameImaging& im, const std::vector<int>& flow_gaps, int f,
+                      const std::vector<FrameGeometry>& geometry, Frame* frame) {
+  const int w = im.camera.width, h = im.camera.height;
+  const int nfr = static_cast<int>(geometry.size());
+  const FrameGeometry& g = geometry[f];
+  for (int gap : flow_gaps) {
+    for (int sign : {1, -1}) {
+      const int other = f + sign * gap;
+      if (other < 0 || other >= nfr) continue;
+      cv::Mat flow(h, w, CV_32FC2, cv::Scalar(0, 0));
+      FlowField field;
+      field.gap = sign * gap;
+      field.valid = cv::Mat::zeros(h, w, CV_8UC1);
+      for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+          const int face = g.raster.face.at<int>(y, x);
+          if (face < 0) continue;
+          const FlowSample s =
+              ComputeFlow(im.camera, im.rig.faces, face, g.raster.Barycentrics(x, y), x, y,
+                          geometry[other], im.options.occlusion_tolerance);
+          flow.at<cv::Vec2f>(y, x) = s.flow;
+          if (s.valid) field.valid.at<unsigned char>(y, x) = 255;
+        }
+      }
+      flow.convertTo(field.flow, CV_16F);
+      frame->flows.push_back(std::move(field));
+    }
+  }
+}
+
+// Video v of the scene: the frames' data and the ground-truth meshes.
+void RenderVideo(const FrameImaging& im, const ScenePlan& plan, int v,
+                 const Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic>& gt_colors,
+                 SynthScene* scene) {
+  const Rig& rig = im.rig;
+  const int nfr = im.options.frames_per_video;
+  Video& video = scene->dataset.videos[v];
+  char name[32];
+  std::snprintf(name, sizeof(name), "video_%03d", v);
+  video.name = name;
+  video.camera = im.camera;
+  video.frames.resize(nfr);
+  scene->gt_meshes[v].resize(nfr);
+  std::vector<FrameGeometry> geometry(nfr);
+  // Pass 1: pose, transform, rasterise.
+  ParallelFor(nfr, [&](int begin, int end) {
+    for (int f = begin; f < end; ++f) {
+      const FramePlan& fp = plan.frames[v][f];
+      const Eigen::Matrix3Xd posed = PosedVerticesInRoot(rig, plan, fp.animation_time);
+      const Eigen::Isometry3d camera_from_root = IsometryFromPose(fp.camera_from_root_gt.data());
+      FrameGeometry& g = geometry[f];
+      g.vertices = camera_from_root * posed;
+      g.normals = VertexNormals(g.vertices, rig.faces);
+      g.raster = Rasterize(im.camera, g.vertices, rig.faces);
+      TriangleMesh& mesh = scene->gt_meshes[v][f];
+      mesh.vertices = g.vertices;
+      mesh.faces = rig.faces;
+      mesh.colors = gt_colors;
+    }
+  });
+  // Pass 2: images, features and flow.
+  ParallelFor(nfr, [&](int begin, int end) {
+    for (int f = begin; f < end; ++f) {
+      Frame& frame = video.frames[f];
+      frame.index = f;
+      frame.root_pose_gt = plan.frames[v][f].camera_from_root_gt;
+      frame.root_pose_init = plan.frames[v][f].camera_from_root_init;
+      RenderFrameImages(im, v, f, geometry[f], &frame);
+      RenderFrameFlows(im, scene->dataset.flow_gaps, f, geometry, &frame);
+    }
+  });
+}
+
+// Records the initial poses' noise in each video's root_poses_init.txt
+// (comment lines).
+void RecordPoseNoise(const SynthOptions& options, SynthScene* scene) {
+  const PoseNoiseStats all = MeasurePoseNoise(scene->dataset);
+  auto line = [](const char* what, const PoseNoiseStats& st) {
+    char buffer[320];
+    std::snprintf(buffer, sizeof(buffer),
+                  "%s (%d frames): rotation error mean %.3f deg, p90 %.3f deg, max %.3f deg; "
+                  "translation error mean %.6g, p90 %.6g",
+                  what, st.frames, st.rotation_mean_deg, st.rotation_p90_deg, st.rotation_max_deg,
+                  st.translation_mean, st.translation_p90);
+    return std::string(buffer);
+  };
+  for (int v = 0; v < options.num_videos; ++v) {
+    scene->dataset.videos[v].root_poses_init_comment =
+        "banmo synth pose noise: " + DescribePoseNoise(options) + ", seed " +
+        std::to_string(options.seed) + "\nmeasured against root_poses_gt.txt\n" +
+        line("this video", MeasurePoseNoise(scene->dataset, v)) + "\n" + line("all videos", all);
+  }
+}
+
+}  // namespace
+
+SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
+                                const std::function<void(int, int)>& progress) {
+  const ScenePlan plan = PlanScene(rig, options);
+  const FeatureEmbedding embedding;
+  Eigen::Matrix3Xd rest_root = rig.rest_vertices;
+  rest_root.colwise() -= plan.normalization.center;
+  rest_root *= plan.normalization.scale;
+  const FrameImaging im{rig,
+                        options,
+                        plan.camera,
+                        embedding,
+                        std::move(rest_root),
+                        options.light_in_camera.normalized(),
+                        rig.uvs.cols() == rig.NumVertices()};
+  const Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> gt_colors = GroundTruthColours(rig);
 
   SynthScene scene;
   scene.dataset.flow_gaps = options.flow_gaps;
   std::sort(scene.dataset.flow_gaps.begin(), scene.dataset.flow_gaps.end());
-  scene.dataset.videos.resize(nvid);
-  scene.gt_meshes.resize(nvid);
-  for (int v = 0; v < nvid; ++v) {
-    Video& video = scene.dataset.videos[v];
-    char name[32];
-    std::snprintf(name, sizeof(name), "video_%03d", v);
-    video.name = name;
-    video.camera = camera;
-    video.frames.resize(nfr);
-    scene.gt_meshes[v].resize(nfr);
-    std::vector<FrameGeometry> geometry(nfr);
-    // Pass 1: pose, transform, rasterise.
-    ParallelFor(nfr, [&](int begin, int end) {
-      for (int f = begin; f < end; ++f) {
-        const FramePlan& fp = plan.frames[v][f];
-        const Eigen::Matrix3Xd posed = PosedVerticesInRoot(rig, plan, fp.animation_time);
-        const Eigen::Isometry3d camera_from_root = IsometryFromPose(fp.camera_from_root_gt.data());
-        FrameGeometry& g = geometry[f];
-        g.vertices = camera_from_root * posed;
-        g.normals = VertexNormals(g.vertices, rig.faces);
-        g.raster = Rasterize(camera, g.vertices, rig.faces);
-        TriangleMesh& mesh = scene.gt_meshes[v][f];
-        mesh.vertices = g.vertices;
-        mesh.faces = rig.faces;
-        mesh.colors = gt_colors;
-      }
-    });
-    // Pass 2: images, features and flow.
-    ParallelFor(nfr, [&](int begin, int end) {
-      for (int f = begin; f < end; ++f) {
-        const FrameGeometry& g = geometry[f];
-        Frame& frame = video.frames[f];
-        frame.index = f;
-        frame.root_pose_gt = plan.frames[v][f].camera_from_root_gt;
-        frame.root_pose_init = plan.frames[v][f].camera_from_root_init;
-        frame.rgb.create(h, w, CV_8UC3);
-        frame.rgb.setTo(
-            cv::Scalar(options.background[0], options.background[1], options.background[2]));
-        frame.mask.create(h, w, CV_8UC1);
-        frame.mask.setTo(kMaskBackground);
-        frame.depth = g.raster.depth.clone();
-        cv::Mat features(h, w, CV_32FC(kFeatureDim), cv::Scalar::all(0));
-        std::mt19937_64 rng(MixSeed(options.seed, 3, v, f));
-        for (int y = 0; y < h; ++y) {
-          for (int x = 0; x < w; ++x) {
-            const int face = g.raster.face.at<int>(y, x);
-            if (face < 0) continue;
-            frame.mask.at<unsigned char>(y, x) = kMaskObject;
-            const Eigen::Vector3d b = g.raster.Barycentrics(x, y);
-            const int i0 = rig.faces(0, face), i1 = rig.faces(1, face), i2 = rig.faces(2, face);
-            // Colour: vertex colour x material (x texture at the interpolated UV).
-            const RigMaterial& mat = rig.materials[rig.face_material[face]];
-            Eigen::Vector3f c = (b[0] * rig.vertex_colors.col(i0).cast<double>() +
-                                 b[1] * rig.vertex_colors.col(i1).cast<double>() +
-                                 b[2] * rig.vertex_colors.col(i2).cast<double>())
-                                    .cast<float>();
-            c = c.cwiseProduct(mat.base_color.head<3>().cast<float>());
-            if (mat.texture >= 0 && textured) {
-              const Eigen::Vector2d uv = b[0] * rig.uvs.col(i0).cast<double>() +
-                                         b[1] * rig.uvs.col(i1).cast<double>() +
-                                         b[2] * rig.uvs.col(i2).cast<double>();
-              c = c.cwiseProduct(SampleTexture(rig.textures[mat.texture], static_cast<float>(uv[0]),
-                                               static_cast<float>(uv[1])));
-            }
-            // Lambert + ambient with the normal turned towards the camera.
-            Eigen::Vector3d n =
-                b[0] * g.normals.col(i0) + b[1] * g.normals.col(i1) + b[2] * g.normals.col(i2);
-            const Eigen::Vector3d point =
-                b[0] * g.vertices.col(i0) + b[1] * g.vertices.col(i1) + b[2] * g.vertices.col(i2);
-            if (n.dot(point) > 0) n = -n;
-            const double len = n.norm();
-            const double lambert = len > 0 ? std::max(0.0, n.dot(light) / len) : 0.0;
-            const double shade = options.ambient + (1 - options.ambient) * lambert;
-            cv::Vec3b& px = frame.rgb.at<cv::Vec3b>(y, x);
-            for (int k = 0; k < 3; ++k) {
-              px[k] =
-                  static_cast<unsigned char>(std::lround(std::clamp(c[k] * shade, 0.0, 1.0) * 255));
-            }
-            // Features of the rest-pose point, plus noise.
-            const Eigen::Vector3d rest =
-                b[0] * rest_root.col(i0) + b[1] * rest_root.col(i1) + b[2] * rest_root.col(i2);
-            FeatureVector e = embedding(rest);
-            if (options.feature_noise > 0) {
-              for (int k = 0; k < kFeatureDim; ++k) e[k] += options.feature_noise * NormalDraw(rng);
-              e.normalize();
-            }
-            float* out = features.ptr<float>(y) + static_cast<size_t>(x) * kFeatureDim;
-            for (int k = 0; k < kFeatureDim; ++k) out[k] = static_cast<float>(e[k]);
-          }
-        }
-        features.convertTo(frame.features, CV_16F);
-        // Flow to t + gap and t - gap where that frame exists.
-        for (int gap : scene.dataset.flow_gaps) {
-          for (int sign : {1, -1}) {
-            const int other = f + sign * gap;
-            if (other < 0 || other >= nfr) continue;
-            cv::Mat flow(h, w, CV_32FC2, cv::Scalar(0, 0));
-            FlowField field;
-            field.gap = sign * gap;
-            field.valid = cv::Mat::zeros(h, w, CV_8UC1);
-            for (int y = 0; y < h; ++y) {
-              for (int x = 0; x < w; ++x) {
-                const int face = g.raster.face.at<int>(y, x);
-                if (face < 0) continue;
-                const FlowSample s =
-                    ComputeFlow(camera, rig.faces, face, g.raster.Barycentrics(x, y), x, y,
-                                geometry[other], options.occlusion_tolerance);
-                flow.at<cv::Vec2f>(y, x) = s.flow;
-                if (s.valid) field.valid.at<unsigned char>(y, x) = 255;
-              }
-            }
-            flow.convertTo(field.flow, CV_16F);
-            frame.flows.push_back(std::move(field));
-          }
-        }
-      }
-    });
-    if (progress) progress(v + 1, nvid);
+  scene.dataset.videos.resize(options.num_videos);
+  scene.gt_meshes.resize(options.num_videos);
+  for (int v = 0; v < options.num_videos; ++v) {
+    RenderVideo(im, plan, v, gt_colors, &scene);
+    if (progress) progress(v + 1, options.num_videos);
   }
   if (options.object_scale != 1.0) ScaleScene(options.object_scale, &scene);
   if (options.pose_noise_deg > 0 || options.pose_noise_model != PoseNoiseModel::kExact) {
-    // Record the noise in each video's root_poses_init.txt (comment lines).
-    const PoseNoiseStats all = MeasurePoseNoise(scene.dataset);
-    auto line = [](const char* what, const PoseNoiseStats& st) {
-      char buffer[320];
-      std::snprintf(buffer, sizeof(buffer),
-                    "%s (%d frames): rotation error mean %.3f deg, p90 %.3f deg, max %.3f deg; "
-                    "translation error mean %.6g, p90 %.6g",
-                    what, st.frames, st.rotation_mean_deg, st.rotation_p90_deg, st.rotation_max_deg,
-                    st.translation_mean, st.translation_p90);
-      return std::string(buffer);
-    };
-    for (int v = 0; v < nvid; ++v) {
-      scene.dataset.videos[v].root_poses_init_comment =
-          "banmo synth pose noise: " + DescribePoseNoise(options) + ", seed " +
-          std::to_string(options.seed) + "\nmeasured against root_poses_gt.txt\n" +
-          line("this video", MeasurePoseNoise(scene.dataset, v)) + "\n" + line("all videos", all);
-    }
+    RecordPoseNoise(options, &scene);
   }
   return scene;
 }

@@ -8,9 +8,9 @@
 
 #include "banmo/extract/extract.h"
 #include "banmo/losses/ray_batch.h"
-#include "banmo/render/ray_samples.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
+#include "banmo/volume/ray_samples.h"
 
 namespace banmo {
 namespace {

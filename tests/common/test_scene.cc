@@ -4,7 +4,7 @@
 
 #include "banmo/deform/bones.h"
 #include "banmo/geometry/se3.h"
-#include "banmo/render/ray_samples.h"
+#include "banmo/volume/ray_samples.h"
 
 namespace banmo {
 

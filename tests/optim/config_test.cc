@@ -44,7 +44,7 @@ TEST(SolverConfig, MinimalConfigTakesStructDefaults) {
   ASSERT_EQ(c.stages.size(), 1u);
   const StageConfig d;
   EXPECT_EQ(c.stages[0].name, d.name);
-  EXPECT_EQ(c.stages[0].iterations, d.iterations);
+  EXPECT_EQ(c.stages[0].batches, d.batches);
   EXPECT_EQ(c.stages[0].constant, d.constant);
   EXPECT_EQ(c.stages[0].sampling.flow_gaps, d.sampling.flow_gaps);
   EXPECT_EQ(c.model.num_bones, ModelOptions().num_bones);
@@ -52,6 +52,33 @@ TEST(SolverConfig, MinimalConfigTakesStructDefaults) {
   EXPECT_EQ(c.seed, 0u);
   // A null stage entry ("- ") is a stage with the defaults too.
   EXPECT_EQ(ParseSolverConfig("stages:\n  -\n", "test.yaml").stages.size(), 1u);
+}
+
+TEST(SolverConfig, OldIterationsKeyIsADeprecatedAliasOfBatches) {
+  const SolverConfig c = ParseSolverConfig(
+      "defaults:\n  iterations: 7\nstages:\n  - {}\n  - iterations: 3\n    batch_rays: 5\n"
+      "  - batches: 4\n",
+      "test.yaml");
+  ASSERT_EQ(c.stages.size(), 3u);
+  EXPECT_EQ(c.stages[0].batches, 7);  // from defaults
+  EXPECT_EQ(c.stages[1].batches, 3);
+  EXPECT_EQ(c.stages[1].batch_rays, 5);  // the other keys of the renamed map
+  EXPECT_EQ(c.stages[2].batches, 4);
+  // Written back under the new name only.
+  const std::string yaml = SolverConfigToYaml(c);
+  EXPECT_NE(yaml.find("batches: 3"), std::string::npos);
+  EXPECT_EQ(yaml.find("iterations: 3"), std::string::npos);
+  // Both names in one stage: an error naming both keys.
+  try {
+    ParseSolverConfig("stages:\n  - batches: 3\n    iterations: 3\n", "test.yaml");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("'stages[0].iterations'"), std::string::npos) << message;
+    EXPECT_NE(message.find("'stages[0].batches'"), std::string::npos) << message;
+  }
+  // The alias is a stage key only: elsewhere `iterations` stays unknown.
+  EXPECT_THROW(ParseSolverConfig("stages:\n  - lm: {iterations: 3}\n", "test.yaml"), InputError);
 }
 
 TEST(SolverConfig, EveryProblemFileLoadsAndChecks) {
@@ -151,9 +178,9 @@ TEST(SolverConfig, WrongTypesNameKeyAndExpectedType) {
   };
   const std::vector<Case> cases = {
       {"stages:\n  - iterations: abc\n",
-       {"test.yaml: key 'stages[0].iterations' (line 2)", "expected an integer", "'abc'"}},
-      {"stages:\n  - iterations: 1.5\n", {"'stages[0].iterations'", "an integer"}},
-      {"stages:\n  - iterations: 99999999999\n", {"'stages[0].iterations'", "an integer"}},
+       {"test.yaml: key 'stages[0].batches' (line 2)", "expected an integer", "'abc'"}},
+      {"stages:\n  - batches: 1.5\n", {"'stages[0].batches'", "an integer"}},
+      {"stages:\n  - batches: 99999999999\n", {"'stages[0].batches'", "an integer"}},
       {"stages:\n  - losses: {rgb: {weight: [1]}}\n",
        {"'stages[0].losses.rgb.weight'", "a finite number", "got a list"}},
       {"stages:\n  - losses: {rgb: {weight: .nan}}\n", {"rgb.weight'", "a finite number"}},
@@ -242,7 +269,7 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
          c->model.field.appearance_code_dim = 0;
        }},
       {"stages[1].name", [&](SolverConfig* c) { S(c).name = ""; }},
-      {"stages[1].iterations", [&](SolverConfig* c) { S(c).iterations = 0; }},
+      {"stages[1].batches", [&](SolverConfig* c) { S(c).batches = 0; }},
       {"stages[1].batch_rays", [&](SolverConfig* c) { S(c).batch_rays = 0; }},
       {"stages[1].samples_per_ray", [&](SolverConfig* c) { S(c).samples_per_ray = -2; }},
       {"stages[1].losses.rgb.weight",
@@ -491,7 +518,7 @@ SolverConfig EveryFieldChanged() {
   for (int i = 0; i < 2; ++i) {
     StageConfig s;
     s.name = i == 0 ? "first: stage #1" : "null";  // quoting; "null" must stay a string
-    s.iterations = 77 + i;
+    s.batches = 77 + i;
     s.step_rule = i == 0 ? StepRule::kLm : StepRule::kAlternate;
     s.batch_rays = 333;
     s.samples_per_ray = 17;
@@ -586,7 +613,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     const StageConfig& s = a.stages[i];
     const StageConfig& t = b.stages[i];
     EXPECT_EQ(s.name, t.name);
-    EXPECT_EQ(s.iterations, t.iterations);
+    EXPECT_EQ(s.batches, t.batches);
     EXPECT_EQ(s.step_rule, t.step_rule);
     EXPECT_EQ(s.batch_rays, t.batch_rays);
     EXPECT_EQ(s.samples_per_ray, t.samples_per_ray);

@@ -10,7 +10,7 @@
 #include <random>
 #include <vector>
 
-#include "banmo/render/ray_samples.h"
+#include "banmo/volume/ray_samples.h"
 
 namespace banmo {
 namespace {

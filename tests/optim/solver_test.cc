@@ -73,7 +73,7 @@ TEST(Solver, OnBatchSeesEveryBatchInOrder) {
   SolverConfig config = TinyConfig(StepRule::kAdam, 5);
   config.stages.push_back(config.stages[0]);
   config.stages[1].name = "second";
-  config.stages[1].iterations = 3;
+  config.stages[1].batches = 3;
   Solver solver(data, config, MakeModelForDataset(data, config.model));
   SolveOptions options;
   options.quiet = true;
@@ -87,14 +87,14 @@ TEST(Solver, OnBatchSeesEveryBatchInOrder) {
   for (size_t i = 0; i < seen.size(); ++i) {
     EXPECT_EQ(seen[i].total_batches, static_cast<int>(i) + 1);
     EXPECT_EQ(seen[i].stage, i < 5 ? 0 : 1);
-    EXPECT_EQ(seen[i].iteration, i < 5 ? static_cast<int>(i) + 1 : static_cast<int>(i) - 4);
+    EXPECT_EQ(seen[i].batch, i < 5 ? static_cast<int>(i) + 1 : static_cast<int>(i) - 4);
     EXPECT_FALSE(seen[i].losses.empty());
     if (i > 0) {
       EXPECT_GE(seen[i].solve_seconds, seen[i - 1].solve_seconds);
     }
   }
   EXPECT_EQ(seen.back().stage_name, "second");
-  EXPECT_EQ(seen.back().stage_iterations, 3);
+  EXPECT_EQ(seen.back().stage_batches, 3);
 }
 
 // Delta skinning switched on at half the stage: before, MLP_Delta and the
@@ -116,9 +116,9 @@ TEST(Solver, DeltaSkinningSwitchesOnFromAFraction) {
   options.quiet = true;
   bool zero_before = true, nonzero_after = false;
   options.on_batch = [&](const BatchProgress& p, const Model& model) {
-    if (p.iteration <= 10) zero_before = zero_before && !model.DeltaSkinningIsNonZero();
-    if (p.iteration == 20) nonzero_after = model.DeltaSkinningIsNonZero();
-    if (p.iteration == 10) {
+    if (p.batch <= 10) zero_before = zero_before && !model.DeltaSkinningIsNonZero();
+    if (p.batch == 20) nonzero_after = model.DeltaSkinningIsNonZero();
+    if (p.batch == 10) {
       EXPECT_TRUE(std::equal(delta0.begin(), delta0.end(), model.delta_skinning_params()));
     }
   };
@@ -181,7 +181,7 @@ TEST(Solver, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   StageConfig lm = config.stages[0];
   lm.name = "lm";
   lm.step_rule = StepRule::kLm;
-  lm.iterations = 3;
+  lm.batches = 3;
   lm.sampling.active_fraction = 0.25;
   config.stages.push_back(lm);
   ExpectResumeEqualsStraight(config, {6}, "banmo_resume_test");  // stops inside the second stage
@@ -294,7 +294,7 @@ TEST(Solver, ResumeAcrossAutoSizeGrowthIsBitwiseIdentical) {
   SolverConfig config = AutoSizeConfig(10);  // grow at batches 3 and 6
   StageConfig second = config.stages[0];
   second.name = "second";
-  second.iterations = 2;
+  second.batches = 2;
   config.stages.push_back(second);
   ExpectResumeEqualsStraight(config, {3, 7}, "banmo_resume_autosize_test");
   // The checkpoint of the finished run has the grown sizes.

@@ -55,7 +55,7 @@ inline SolverConfig TinySolverConfig(StepRule step_rule, int iterations) {
   c.model.field.appearance_code_dim = 2;
   StageConfig s;
   s.name = "tiny";
-  s.iterations = iterations;
+  s.batches = iterations;
   s.step_rule = step_rule;
   s.batch_rays = 96;
   s.samples_per_ray = 16;

@@ -79,7 +79,7 @@ TEST_P(StabilityTest, EveryBatchFinite) {
   ASSERT_EQ(config.stages.size(), 3u);
   for (int s = 0; s < 3; ++s) {
     StageConfig& stage = config.stages[s];
-    stage.iterations = iterations[s];
+    stage.batches = iterations[s];
     stage.batch_rays = 64;
     stage.step_rule = *ParseEnum<StepRule>(c.step_rule);
     stage.sampling.flow_gaps = c.gaps;
@@ -104,7 +104,7 @@ TEST_P(StabilityTest, EveryBatchFinite) {
     if (!block.empty()) what += (what.empty() ? "" : ", ") + ("parameter block " + block);
     if (!what.empty()) {
       first_failure = "stage " + std::to_string(p.stage) + " (" + p.stage_name + ") batch " +
-                      std::to_string(p.iteration) + " (total " + std::to_string(p.total_batches) +
+                      std::to_string(p.batch) + " (total " + std::to_string(p.total_batches) +
                       "): " + what;
     }
   };

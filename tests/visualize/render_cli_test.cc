@@ -41,7 +41,7 @@ constexpr char kConfig[] = R"(model:
 seed: 3
 stages:
   - name: tiny
-    iterations: 30
+    batches: 30
     batch_rays: 96
     samples_per_ray: 16
     sampling: {flow_gaps: [1, 2], eikonal_points: 32, match_grid_points: 256, match_top_k: 8}

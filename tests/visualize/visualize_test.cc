@@ -16,11 +16,11 @@
 #include "banmo/extract/extract.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
-#include "banmo/render/ray_samples.h"
 #include "banmo/util/error.h"
 #include "banmo/visualize/panels.h"
 #include "banmo/visualize/render.h"
 #include "banmo/visualize/sequence.h"
+#include "banmo/volume/ray_samples.h"
 #include "trained_tiny_model.h"
 
 namespace banmo {
@@ -321,7 +321,7 @@ TEST(Panels, ShadedMeshLandsWhereTheVolumeRenderingSeesTheObject) {
 TEST(RenderSequence, WritesOnePngPerFrameTheErrorMapsAndTheTable) {
   const Model& model = TrainedTinyModel();
   const Dataset& data = TinyQuadrupedDataset();
-  const fs::path out = fs::temp_directory_path() / ("banmo_render_seq_" + std::to_string(getpid()));
+  const fs::path out = fs::temp_directory_path() / ("banmo_volume_seq_" + std::to_string(getpid()));
   fs::remove_all(out);
   RenderSequenceOptions options;
   options.frame = TinyRenderOptions(model);

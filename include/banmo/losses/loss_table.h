@@ -6,8 +6,8 @@
 // parameter lists. docs/equations.md maps each equation to its code.
 //
 // Adding a per-ray loss (README, "How to add a loss"): its functor header,
-// one row here (before kCycle3d if the render functor computes it), its call
-// in RayRenderFunctor (losses/ray_functors.h), and its test.
+// one row here (before kCycle3d if the composite functor computes it), its call
+// in RayCompositeFunctor (losses/ray_functors.h), and its test.
 #pragma once
 
 #include <array>
@@ -16,7 +16,7 @@
 
 namespace banmo {
 
-// Per-ray terms first: the render functor's terms (in the order of their
+// Per-ray terms first: the composite functor's terms (in the order of their
 // residual rows), then the 3D cycle; then the regularisers, which are not
 // per ray.
 enum class LossTerm {
@@ -33,8 +33,8 @@ enum class LossTerm {
 inline constexpr int kNumLossTerms = 9;
 // LossTerm values below kNumRayTerms are evaluated per ray (losses/ray_batch.h).
 inline constexpr int kNumRayTerms = 6;
-// ... and below kNumRenderTerms by the render functor (losses/ray_functors.h).
-inline constexpr int kNumRenderTerms = 5;
+// ... and below kNumCompositeTerms by the composite functor (losses/ray_functors.h).
+inline constexpr int kNumCompositeTerms = 5;
 
 // Parameter blocks a ray's evaluation reads.
 enum RayBlock {

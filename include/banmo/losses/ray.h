@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "banmo/losses/loss_table.h"
-#include "banmo/render/volume_rendering.h"
+#include "banmo/volume/volume_rendering.h"
 
 namespace banmo {
 

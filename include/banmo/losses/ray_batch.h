@@ -62,7 +62,7 @@ std::array<int, kNumRayBlocks> RayBlockSizes(const Model& model, const RayParame
 
 using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// A ray's residuals and Jacobians: render-term rows first (LossTerm order),
+// A ray's residuals and Jacobians: composite-term rows first (LossTerm order),
 // then the 3N rows of the 3D cycle.
 struct RayEvaluation {
   std::vector<double> residuals;

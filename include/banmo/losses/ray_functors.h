@@ -22,7 +22,7 @@
 #include "banmo/losses/ray.h"
 #include "banmo/losses/rgb_loss.h"
 #include "banmo/losses/silhouette_loss.h"
-#include "banmo/render/volume_rendering.h"
+#include "banmo/volume/volume_rendering.h"
 
 namespace banmo {
 
@@ -92,9 +92,9 @@ inline void Cycle3dResidual(const Cycle3dLoss& loss, const T* root_delta, const 
   loss(cycled_in_cam, sample_in_cam, residual);
 }
 
-// Local variables of the render functor, as offsets into one flat vector u.
+// Local variables of the composite functor, as offsets into one flat vector u.
 // Parts that a ray does not need have size 0.
-struct RenderLocals {
+struct CompositeLocals {
   int num_samples = 0;
   int sdf = 0, rgb = 0, canonical = 0, displacement = 0, log_beta = 0, matched = 0,
       cycle_projection = 0;
@@ -103,25 +103,27 @@ struct RenderLocals {
 
   // Layout: [sdf (N) | rgb (3N) | canonical X*_i (3N) | displacement (2N) |
   //          log_beta (1) | matched X_hat* (3) | cycle projection (2)].
-  static RenderLocals For(const Ray& ray, const RayLossWeights& weights);
+  static CompositeLocals For(const Ray& ray, const RayLossWeights& weights);
 };
 
 // Everything of a ray downstream of the per-sample field values and warps:
-// volume rendering (Eqs. 4-7) and the rgb, silhouette, flow, feature-match
-// and 2D-cycle residuals (Eqs. 16-18) of the ray's active terms, in
-// LossTerm order. Input u laid out as RenderLocals.
-class RayRenderFunctor {
+// composites the samples into the pixel's predictions by volume rendering
+// (Eqs. 4-7: colour, opacity, expected positions and flow) and evaluates
+// the rgb, silhouette, flow, feature-match and 2D-cycle residuals
+// (Eqs. 16-18) of the ray's active terms, in LossTerm order. Input u laid
+// out as CompositeLocals. (Names: docs/design.md, "Names".)
+class RayCompositeFunctor {
  public:
-  RayRenderFunctor(const Ray& ray, const RayLossWeights& weights)
-      : ray_(ray), weights_(weights), locals_(RenderLocals::For(ray, weights)) {
-    for (int t = 0; t < kNumRenderTerms; ++t) {
+  RayCompositeFunctor(const Ray& ray, const RayLossWeights& weights)
+      : ray_(ray), weights_(weights), locals_(CompositeLocals::For(ray, weights)) {
+    for (int t = 0; t < kNumCompositeTerms; ++t) {
       const LossTerm term = RayTerm(t);
       active_[t] = ray.HasTerm(term, weights);
       if (active_[t]) num_residuals_ += LossTermResiduals(term, ray.NumSamples());
     }
   }
 
-  const RenderLocals& locals() const { return locals_; }
+  const CompositeLocals& locals() const { return locals_; }
   int num_residuals() const { return num_residuals_; }
   bool active(LossTerm term) const { return active_[static_cast<int>(term)]; }
 
@@ -174,8 +176,8 @@ class RayRenderFunctor {
  private:
   const Ray& ray_;
   const RayLossWeights weights_;
-  const RenderLocals locals_;
-  bool active_[kNumRenderTerms] = {};
+  const CompositeLocals locals_;
+  bool active_[kNumCompositeTerms] = {};
   int num_residuals_ = 0;
 };
 

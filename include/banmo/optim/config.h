@@ -131,7 +131,7 @@ struct PoseSolveConfig {
 // model/parameter_group.h, docs/config.md.
 struct StageConfig {
   std::string name = "stage";
-  int iterations = 100;  // minibatches
+  int batches = 100;  // minibatches of the stage (its steps; config key `batches`)
   StepRule step_rule = StepRule::kAdam;
   int batch_rays = 1024;
   int samples_per_ray = 32;

@@ -5,7 +5,7 @@
 // it samples many rays of ONE frame, holds every other block constant (the
 // fields, the bones, the other frames), and runs a few Levenberg-Marquardt
 // iterations on the frame's root correction dG^t (6 degrees of freedom,
-// G^t = G0^t dG^t) with the stage's render terms and robust losses. The
+// G^t = G0^t dG^t) with the stage's composite terms and robust losses. The
 // batch skips the MLP-weight Jacobians (RayBatch::SetFieldJacobians), so an
 // iteration costs about one forward pass of the frame's rays.
 //

@@ -8,7 +8,7 @@
 namespace banmo {
 
 // What one frame's solve did. Costs are Ceres' 1/2 sum rho(|r|^2) over the
-// frame's rays and render terms, divided by the number of rays.
+// frame's rays and composite terms, divided by the number of rays.
 struct FramePoseSolve {
   int video = 0;
   int frame = 0;

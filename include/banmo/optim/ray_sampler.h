@@ -14,7 +14,7 @@
 #include "banmo/losses/ray.h"
 #include "banmo/model/model.h"
 #include "banmo/optim/config.h"
-#include "banmo/render/ray_samples.h"
+#include "banmo/volume/ray_samples.h"
 
 namespace banmo {
 

@@ -52,8 +52,8 @@ using TermLosses = std::map<std::string, double>;
 struct BatchProgress {
   int stage = 0;               // index into config.stages
   std::string stage_name;      //
-  int iteration = 0;           // batches done in this stage (1-based)
-  int stage_iterations = 0;    // batches of this stage
+  int batch = 0;               // batches done in this stage (1-based)
+  int stage_batches = 0;       // batches of this stage
   int total_batches = 0;       // batches done in all stages
   double solve_seconds = 0.0;  // wall time of this Run so far, without on_batch's own time
   TermLosses losses;           // the batch's per-term losses
@@ -81,7 +81,7 @@ struct SolveOptions {
 
 struct StageSummary {
   std::string name;
-  int iterations = 0;
+  int batches = 0;  // batches run in this call (fewer after a resume or a stop)
   double seconds = 0.0;
   double rays_per_second = 0.0;
   TermLosses first_losses;  // first batch of the stage

@@ -10,7 +10,7 @@
 //
 // Rays are built as optim/ray_sampler.cc builds them: pixel centre uv =
 // (x + 0.5, y + 0.5), depth samples between the frame's near and far planes
-// (render/ray_samples.h, NearFarPlanes: canonical bounds through the root
+// (volume/ray_samples.h, NearFarPlanes: canonical bounds through the root
 // pose, +- margin), here
 // stratified at the bin midpoints (no jitter, so renders are deterministic),
 // optionally refined by the solver's importance resampling with a fixed

@@ -1,4 +1,4 @@
-#include "banmo/render/ray_samples.h"
+#include "banmo/volume/ray_samples.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "banmo/render/volume_rendering.h"
+#include "banmo/volume/volume_rendering.h"
 
 #include "banmo/util/logging.h"
 

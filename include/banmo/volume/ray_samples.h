@@ -3,7 +3,7 @@
 // direction, and the importance resampling of importance_depth sampling.
 // Shared by the solver's ray sampler (optim/ray_sampler.h) and the pictures
 // of `banmo render` (visualize/render.h), so both place samples alike.
-// Stratified samples themselves: render/volume_rendering.h.
+// Stratified samples themselves: volume/volume_rendering.h.
 #pragma once
 
 #include <Eigen/Core>
@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "banmo/geometry/se3.h"
-#include "banmo/render/volume_rendering.h"
+#include "banmo/volume/volume_rendering.h"
 
 namespace banmo {
 

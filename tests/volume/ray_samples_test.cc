@@ -1,0 +1,128 @@
+// volume/ray_samples.h: near/far planes, ray direction length, importance
+// resampling.
+#include "banmo/volume/ray_samples.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace banmo {
+namespace {
+
+// The pose camera_from_root with rotation q (w, x, y, z) and translation t.
+Pose MakePose(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) {
+  Pose p;
+  p << q.w(), q.x(), q.y(), q.z(), t.x(), t.y(), t.z();
+  return p;
+}
+
+TEST(NearFarPlanes, BoxInFrontOfTheCameraWidenedByTheMargin) {
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1));
+  double near = 0, far = 0;
+  NearFarPlanes(MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 5)), box, 0.2, &near,
+                &far);
+  EXPECT_NEAR(near, 4 * 0.8, 1e-12);
+  EXPECT_NEAR(far, 6 * 1.2, 1e-12);
+  NearFarPlanes(MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 5)), box, 0.0, &near,
+                &far);
+  EXPECT_NEAR(near, 4, 1e-12);
+  EXPECT_NEAR(far, 6, 1e-12);
+}
+
+TEST(NearFarPlanes, FollowsTheRotatedBox) {
+  // A long box along x turned 90 degrees about y: its x extent becomes depth.
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-2, -0.5, -0.5), Eigen::Vector3d(2, 0.5, 0.5));
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
+  double near = 0, far = 0;
+  NearFarPlanes(MakePose(q, Eigen::Vector3d(0, 0, 10)), box, 0.0, &near, &far);
+  EXPECT_NEAR(near, 8, 1e-9);
+  EXPECT_NEAR(far, 12, 1e-9);
+  NearFarPlanes(MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 10)), box, 0.0,
+                &near, &far);
+  EXPECT_NEAR(near, 9.5, 1e-12);
+  EXPECT_NEAR(far, 10.5, 1e-12);
+}
+
+TEST(NearFarPlanes, NearStaysInFrontOfACameraInsideTheBox) {
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1));
+  double near = 0, far = 0;
+  NearFarPlanes(MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero()), box, 0.2, &near,
+                &far);
+  EXPECT_DOUBLE_EQ(near, 1e-3);
+  EXPECT_NEAR(far, 1.2, 1e-12);
+  // A box wholly behind the camera: far is still beyond near.
+  NearFarPlanes(MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, -5)), box, 0.2,
+                &near, &far);
+  EXPECT_DOUBLE_EQ(near, 1e-3);
+  EXPECT_DOUBLE_EQ(far, near + 1e-3);
+}
+
+TEST(RayDirectionLength, OneAtThePrincipalPointAndGrowingOutwards) {
+  const Eigen::Vector4d k(100, 50, 32, 24);  // fx, fy, cx, cy
+  EXPECT_DOUBLE_EQ(RayDirectionLength(k, Eigen::Vector2d(32, 24)), 1.0);
+  EXPECT_NEAR(RayDirectionLength(k, Eigen::Vector2d(132, 24)), std::sqrt(2.0), 1e-15);
+  EXPECT_NEAR(RayDirectionLength(k, Eigen::Vector2d(32, -26)), std::sqrt(2.0), 1e-15);
+  EXPECT_NEAR(RayDirectionLength(k, Eigen::Vector2d(82, 49)), std::sqrt(1.5), 1e-15);
+}
+
+TEST(ImportanceResample, KeepsTheEvenSamplesAndDrawsTheRestWhereTheWeightIs) {
+  std::mt19937 rng(3);
+  const int n = 16;
+  const double dir_norm = 1.25;
+  RaySamples s = StratifiedSamples(n, 2.0, 6.0, dir_norm, /*jitter=*/true, &rng);
+  const RaySamples before = s;
+  // All the weight on interval 5.
+  std::vector<double> tau(n, 0.0);
+  tau[5] = 1.0;
+  const double lo5 = before.depths[5], hi5 = before.depths[5] + before.deltas[5] / dir_norm;
+  const double far = before.depths[n - 1] + before.deltas[n - 1] / dir_norm;
+  ImportanceResample(tau, &s, &rng);
+  ASSERT_EQ(static_cast<int>(s.depths.size()), n);
+  ASSERT_EQ(static_cast<int>(s.deltas.size()), n);
+  EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end()));
+  // Every even-indexed original depth is still there.
+  for (int i = 0; i < n; i += 2) {
+    EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) != s.depths.end())
+        << "sample " << i;
+  }
+  // The drawn half lies in interval 5, which holds no kept sample (the
+  // 1e-5 floor of the other intervals makes a draw elsewhere a 1e-4 event).
+  int in_interval = 0;
+  for (double d : s.depths) in_interval += d >= lo5 && d < hi5;
+  EXPECT_EQ(in_interval, n / 2);
+  // The intervals tile [first depth, far] (deltas are along the ray: x dir_norm).
+  double length = 0;
+  for (int i = 0; i < n; ++i) {
+    EXPECT_GT(s.deltas[i], 0);
+    length += s.deltas[i] / dir_norm;
+  }
+  EXPECT_NEAR(length, far - s.depths[0], 1e-12);
+}
+
+TEST(ImportanceResample, UniformWeightsSpreadTheDrawnSamples) {
+  std::mt19937 rng(5);
+  const int n = 64;
+  RaySamples s = StratifiedSamples(n, 1.0, 3.0, 1.0, /*jitter=*/false, &rng);
+  ImportanceResample(std::vector<double>(n, 0.5), &s, &rng);
+  // Half the samples on each half of [1, 3] within sampling noise.
+  const int low = static_cast<int>(
+      std::count_if(s.depths.begin(), s.depths.end(), [](double d) { return d < 2.0; }));
+  EXPECT_GE(low, n / 2 - 8);
+  EXPECT_LE(low, n / 2 + 8);
+  EXPECT_GE(s.depths.front(), 1.0);
+  EXPECT_LE(s.depths.back(), 3.0);
+}
+
+TEST(ImportanceResample, SingleSampleIsLeftAlone) {
+  std::mt19937 rng(7);
+  RaySamples s = StratifiedSamples(1, 1.0, 2.0, 1.0, false, &rng);
+  const RaySamples before = s;
+  ImportanceResample({1.0}, &s, &rng);
+  EXPECT_EQ(s.depths, before.depths);
+  EXPECT_EQ(s.deltas, before.deltas);
+}
+
+}  // namespace
+}  // namespace banmo
