@@ -163,10 +163,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   const StageConfig& stage = *run.stage;
   const bool resuming_stage = s == state->stage && state->iteration > 0;
   run.start = resuming_stage ? state->iteration : 0;
-  if (!resuming_stage) {
-    state->lm_radius = -1.0;
-    c->sampler.ClearErrors();  // active sampling revisits this stage's errors only
-  }
+  if (!resuming_stage) state->lm_radius = -1.0;
   run.summary.name = stage.name;
   StageProblem sp(model_.get(), stage, c->extra_constant);
   run.timer.Reset();

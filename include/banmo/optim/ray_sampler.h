@@ -1,8 +1,8 @@
 // Minibatches of pixel rays drawn from a dataset (docs/solver.md):
 // a fresh random set per batch, part inside the object mask, part uniform
 // over the image, part "active" (near pixels whose residuals were large in
-// the stage's recent batches), each with a random flow partner frame and
-// stratified depth samples between the frame's near and far planes.
+// earlier batches), each with a random flow partner frame and stratified
+// depth samples between the frame's near and far planes.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -43,19 +43,11 @@ class RaySampler {
     return out;
   }
 
-  // Active sampling: remembers the errors of the last kErrorWindow rays
-  // recorded (a window, oldest dropped first, so an error measured before
-  // the model changed does not stay); later batches draw
-  // `sampling.active_fraction` of their rays near those pixels, with
-  // probability proportional to the error.
-  static constexpr size_t kErrorWindow = 4096;
+  // Active sampling: remembers the rays of a batch with their errors; later
+  // batches draw `sampling.active_fraction` of their rays near the largest.
   void RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors);
-  // Forgets every recorded error (the solver calls it when a stage starts:
-  // another stage weights its losses differently).
-  void ClearErrors() { error_cache_.clear(); }
 
-  // The error window in recording order, for checkpoints (resume must
-  // reproduce active sampling).
+  // The error cache, for checkpoints (resume must reproduce active sampling).
   struct CachedPixel {
     int video, frame, x, y;
     double error;
