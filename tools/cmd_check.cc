@@ -4,7 +4,7 @@
 #include <string>
 
 #include "banmo/io/dataset.h"
-#include "banmo/optim/scene_scale.h"
+#include "banmo/model/scene_scale.h"
 #include "banmo/util/timer.h"
 #include "command.h"
 
