@@ -34,6 +34,14 @@ def num(text):
         return float("nan")
 
 
+def legacy_names(row):
+    """A trace row with the column names of today: traces written before
+    2026-11-26 call the batch index `iteration`."""
+    if "iteration" in row and "batch" not in row:
+        row = {("batch" if k == "iteration" else k): v for k, v in row.items()}
+    return row
+
+
 def read_runs(work, group):
     """{name: {"rows": [...], "done": {...} or None}} of work/group/*/."""
     runs = {}
@@ -45,7 +53,7 @@ def read_runs(work, group):
         if not os.path.isfile(path):
             continue
         with open(path, newline="") as f:
-            rows = list(csv.DictReader(f))
+            rows = [legacy_names(r) for r in csv.DictReader(f)]
         done = None
         done_path = os.path.join(gdir, name, "done")
         if os.path.isfile(done_path):
@@ -424,7 +432,7 @@ def main():
                 continue
             if bad:
                 finite = (f"**NO**: stage {bad['stage']} ({bad['stage_name']}) batch "
-                          f"{bad['iteration']}, {bad['nonfinite_what']}")
+                          f"{bad['batch']}, {bad['nonfinite_what']}")
             elif run["done"] is None:
                 finite = "**run did not finish** (see log.txt)"
             else:

@@ -11,23 +11,28 @@ import unittest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SUMMARIZE = os.path.join(HERE, "summarize.py")
-COLUMNS = ["config", "scene", "kind", "stage", "stage_name", "iteration", "total_batches",
+COLUMNS = ["config", "scene", "kind", "stage", "stage_name", "batch", "total_batches",
            "solve_seconds", "cpu_seconds", "wall_seconds", "trace_seconds", "loss_total",
            "loss_rgb", "loss_silhouette", "loss_flow", "loss_feature_match", "loss_cycle_2d",
            "loss_cycle_3d", "params_finite", "losses_finite", "nonfinite_what", "resolution",
            "mesh_vertices", "eval_frames", "chamfer_cm", "fscore_1", "fscore_2", "fscore_5"]
 
 
-def write_run(work, group, name, scene, points, done, vertices=100):
+def write_run(work, group, name, scene, points, done, vertices=100, legacy=False):
+    """legacy: the header of traces written before 2026-11-26 (`iteration`
+    for `batch`)."""
     d = os.path.join(work, group, name)
     os.makedirs(d)
     with open(os.path.join(d, "trace.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, COLUMNS)
-        w.writeheader()
+        if legacy:
+            f.write(",".join("iteration" if c == "batch" else c for c in COLUMNS) + "\n")
+        else:
+            w.writeheader()
         for i, (sec, cd) in enumerate(points):
             row = {c: "0" for c in COLUMNS}
             row.update(config=name, scene=scene, kind="trace", stage=str(0 if i else -1),
-                       stage_name="all" if i else "", iteration=str(10 * i),
+                       stage_name="all" if i else "", batch=str(10 * i),
                        total_batches=str(10 * i), solve_seconds=str(sec), params_finite="1",
                        losses_finite="1", nonfinite_what="", mesh_vertices=str(vertices),
                        chamfer_cm=str(cd),
@@ -101,6 +106,23 @@ class RestoreTest(unittest.TestCase):
                                   "--work", work2, "--results", res], check=True,
                                  capture_output=True, text=True).stdout
             self.assertEqual(out, "")
+
+    def test_traces_of_the_old_column_name_mix_with_new_ones(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            work, res = os.path.join(tmp, "work"), os.path.join(tmp, "res")
+            here, readme = write_tables(
+                tmp, "all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n",
+                "all noise50 quad_n\n")
+            write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20)], True, legacy=True)
+            write_run(work, "compare", "lm", "quad", [(0, 30), (8, 14)], True)
+            self.run_summarize("--mode", "full", "--work", work, "--here", here,
+                               "--results", res, "--readme", readme, "--run-seconds", "1",
+                               "--command", "test")
+            with open(os.path.join(res, "results", "full", "traces.csv"), newline="") as f:
+                rows = list(csv.DictReader(f))
+            self.assertNotIn("iteration", rows[0])
+            self.assertEqual({(r["config"], r["batch"]) for r in rows},
+                             {("adam", "0"), ("adam", "10"), ("lm", "0"), ("lm", "10")})
 
     def test_empty_mesh_is_flagged(self):
         with tempfile.TemporaryDirectory() as tmp:

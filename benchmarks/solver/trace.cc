@@ -168,7 +168,7 @@ const std::vector<std::string>& TraceLossTerms() {
 
 std::string TraceCsvHeader() {
   std::string h =
-      "config,scene,kind,stage,stage_name,iteration,total_batches,solve_seconds,cpu_seconds,"
+      "config,scene,kind,stage,stage_name,batch,total_batches,solve_seconds,cpu_seconds,"
       "wall_seconds,trace_seconds,loss_total";
   for (const std::string& t : TraceLossTerms()) h += ",loss_" + t;
   h += ",params_finite,losses_finite,nonfinite_what,resolution,mesh_vertices,eval_frames,"
@@ -181,7 +181,7 @@ std::string TraceCsvLine(const TraceRow& r) {
   double total = 0.0;
   for (const auto& [name, value] : r.losses) total += value;
   os << r.config << ',' << r.scene << ',' << r.kind << ',' << r.stage << ',' << r.stage_name << ','
-     << r.iteration << ',' << r.total_batches << ',' << Num(r.solve_seconds) << ','
+     << r.batch << ',' << r.total_batches << ',' << Num(r.solve_seconds) << ','
      << Num(r.cpu_seconds) << ',' << Num(r.wall_seconds) << ',' << Num(r.trace_seconds) << ','
      << (r.losses.empty() ? "nan" : Num(total));
   for (const std::string& t : TraceLossTerms()) {

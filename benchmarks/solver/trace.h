@@ -44,7 +44,7 @@ struct TraceRow {
   std::string kind;            // "trace" (checkpoint), "final" (full-resolution), "nonfinite"
   int stage = -1;              // stage index (-1: before the first batch)
   std::string stage_name;      //
-  int iteration = 0;           // batches done in the stage
+  int batch = 0;               // batches done in the stage
   int total_batches = 0;       // batches done in all stages
   double solve_seconds = 0.0;  // solver wall time without the trace's own time
   double cpu_seconds = 0.0;    // user + system CPU time of the process so far

@@ -234,7 +234,7 @@ int Run(int argc, char** argv) {
       TraceRow row = base_row(finite ? "trace" : "nonfinite");
       row.stage = p.stage;
       row.stage_name = p.stage_name;
-      row.iteration = p.batch;
+      row.batch = p.batch;
       row.total_batches = p.total_batches;
       row.solve_seconds = p.solve_seconds;
       row.losses = p.losses;
@@ -272,7 +272,7 @@ int Run(int argc, char** argv) {
     TraceRow row = base_row("trace");
     row.stage = last.stage;
     row.stage_name = last.stage_name;
-    row.iteration = last.batch;
+    row.batch = last.batch;
     row.total_batches = last.total_batches;
     row.solve_seconds = last.solve_seconds;
     row.losses = last.losses;
@@ -288,7 +288,7 @@ int Run(int argc, char** argv) {
     TraceRow row = base_row("final");
     row.stage = last.stage;
     row.stage_name = last.stage_name;
-    row.iteration = last.batch;
+    row.batch = last.batch;
     row.total_batches = last.total_batches;
     row.solve_seconds = last.solve_seconds;
     row.losses = last.losses;

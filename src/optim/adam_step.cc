@@ -125,7 +125,7 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
   }
   ceres::Problem& problem = sp.problem();
   const AdamConfig& a = c.stage->adam;
-  const double lr = LearningRate(a, c.iteration, c.stage->batches);
+  const double lr = LearningRate(a, c.batch, c.stage->batches);
   size_t offset = 0;
   for (double* p : blocks) {
     const ceres::Manifold* manifold = problem.GetManifold(p);

@@ -310,8 +310,8 @@ std::string AutoSizeEvent::Describe() const {
   char buf[256];
   std::string out;
   std::snprintf(buf, sizeof(buf),
-                "auto-size at batch %d: %d rays (%d on the object), mean error %.4g", iteration,
-                rays, object_rays, mean_error);
+                "auto-size at batch %d: %d rays (%d on the object), mean error %.4g", batch, rays,
+                object_rays, mean_error);
   out += buf;
   const std::vector<double>& ratio = attribution.ratio;
   if (!ratio.empty()) {

@@ -14,7 +14,10 @@
 namespace banmo {
 namespace {
 
-constexpr char kCheckpointFormat[] = "banmo-checkpoint-2";
+// Format 3 names a stage's progress `batch`; format 2 (key `iteration`,
+// the same number) still loads.
+constexpr char kCheckpointFormat[] = "banmo-checkpoint-3";
+constexpr char kCheckpointFormatV2[] = "banmo-checkpoint-2";
 
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -24,7 +27,7 @@ std::string ReadFile(const std::string& path) {
   return ss.str();
 }
 
-// Stage, iteration and config of checkpoint.yaml, or of model.yaml in a
+// Stage, batch and config of checkpoint.yaml, or of model.yaml in a
 // checkpoint written before the model file existed.
 CheckpointInfo ReadInfo(const std::string& dir) {
   std::string path = dir + "/checkpoint.yaml";
@@ -37,13 +40,16 @@ CheckpointInfo ReadInfo(const std::string& dir) {
   try {
     const YAML::Node root = YAML::LoadFile(path);
     const std::string format = root["format"].as<std::string>();
-    if (format != expected_format) {
+    const bool known = format == expected_format ||
+                       (expected_format == kCheckpointFormat && format == kCheckpointFormatV2);
+    if (!known) {
       ThrowInputError(path, ": unknown checkpoint format '", format, "' (expected ",
                       expected_format,
                       "); resume with the banmo that wrote it, or solve again with this one");
     }
     info.stage = root["stage"].as<int>();
-    info.iteration = root["iteration"].as<int>();
+    // Formats before 3 count the stage's batches under `iteration`.
+    info.batch = root[format == kCheckpointFormat ? "batch" : "iteration"].as<int>();
     info.config = root["config"].as<std::string>();
   } catch (const YAML::Exception& e) {
     ThrowInputError(path, ": missing or malformed key (", e.what(),
@@ -71,7 +77,7 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
   out << YAML::BeginMap;
   out << YAML::Key << "format" << YAML::Value << kCheckpointFormat;
   out << YAML::Key << "stage" << YAML::Value << info.stage;
-  out << YAML::Key << "iteration" << YAML::Value << info.iteration;
+  out << YAML::Key << "batch" << YAML::Value << info.batch;
   out << YAML::Key << "config" << YAML::Value << YAML::Literal << info.config;
   out << YAML::EndMap;
   CHECK(out.good()) << "YAML emitter: " << out.GetLastError();

@@ -142,15 +142,15 @@ void Solver::NameBlocks(RunContext* c) {
       [&](const std::string& name, double* data, int) { c->block_names[data] = name; });
 }
 
-void Solver::Save(int stage, int iteration, RunContext* c) {
+void Solver::Save(int stage, int batch_index, RunContext* c) {
   if (c->options.out_dir.empty()) return;
   SolverState* state = c->state;
   state->stage = stage;
-  state->iteration = iteration;
+  state->batch = batch_index;
   state->error_cache = c->sampler.error_cache();
   state->bounds = bounds_;
   model_->set_canonical_bounds(bounds_);
-  CheckpointInfo info{stage, iteration, c->resolved_config};
+  CheckpointInfo info{stage, batch_index, c->resolved_config};
   SaveCheckpoint(c->options.out_dir + "/checkpoint", *model_, info, state->Serialize());
 }
 
@@ -161,8 +161,8 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   run.index = s;
   run.stage = &config_.stages[s];
   const StageConfig& stage = *run.stage;
-  const bool resuming_stage = s == state->stage && state->iteration > 0;
-  run.start = resuming_stage ? state->iteration : 0;
+  const bool resuming_stage = s == state->stage && state->batch > 0;
+  run.start = resuming_stage ? state->batch : 0;
   if (!resuming_stage) state->lm_radius = -1.0;
   run.summary.name = stage.name;
   StageProblem sp(model_.get(), stage, c->extra_constant);
@@ -174,20 +174,20 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
                 stage.samples_per_ray, EnumName(stage.step_rule));
     std::fflush(stdout);
   }
-  for (int it = run.start; it < stage.batches; ++it) {
+  for (int batch_index = run.start; batch_index < stage.batches; ++batch_index) {
     if (g_interrupted ||
         (options.stop_after_batches >= 0 && state->total_batches >= options.stop_after_batches)) {
-      Save(s, it, c);
+      Save(s, batch_index, c);
       result->interrupted = true;
       if (!options.quiet) {
-        std::printf("[%s] stopped at batch %d; checkpoint written%s\n", stage.name.c_str(), it,
-                    options.out_dir.empty() ? " (none: no --out)" : "");
+        std::printf("[%s] stopped at batch %d; checkpoint written%s\n", stage.name.c_str(),
+                    batch_index, options.out_dir.empty() ? " (none: no --out)" : "");
       }
-      run.summary.batches = it - run.start;
+      run.summary.batches = batch_index - run.start;
       result->stages.push_back(run.summary);
       return false;
     }
-    RunBatch(it, &run, &sp, c, result);
+    RunBatch(batch_index, &run, &sp, c, result);
   }
   sp.ClearMinibatch();
   StageSummary& summary = run.summary;
@@ -198,7 +198,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
     for (int k = 0; k < size; ++k) summary.finite = summary.finite && std::isfinite(data[k]);
   });
   result->stages.push_back(summary);
-  state->iteration = 0;
+  state->batch = 0;
   Save(s + 1, 0, c);
   if (!options.quiet) {
     std::printf("[%s] done: %d batches in %.1f s (%.0f rays/s)%s\n", stage.name.c_str(),
@@ -209,11 +209,12 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   return true;
 }
 
-void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, SolveResult* result) {
+void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunContext* c,
+                      SolveResult* result) {
   const StageConfig& stage = *run->stage;
   SolverState* state = c->state;
-  const double fraction = static_cast<double>(it) / std::max(1, stage.batches);
-  RunSchedules(it, fraction, *run, sp, c, result);
+  const double fraction = static_cast<double>(batch_index) / std::max(1, stage.batches);
+  RunSchedules(batch_index, fraction, *run, sp, c, result);
 
   // ---- The minibatch. ----
   sp->ClearMinibatch();
@@ -251,7 +252,7 @@ void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, So
   step.problem = sp;
   step.stage = &stage;
   step.state = state;
-  step.iteration = it;
+  step.batch = batch_index;
   step.adam_gradient_from_ceres = c->options.adam_gradient_from_ceres;
   step.block_names = &c->block_names;
   TakeStep(step, record_losses);
@@ -259,19 +260,19 @@ void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, So
 
   run->rays_done += batch.num_rays();
   ++state->total_batches;
-  if (it == run->start) run->summary.first_losses = losses;
+  if (batch_index == run->start) run->summary.first_losses = losses;
   run->summary.last_losses = losses;
-  ReportBatch(it, *run, losses, *c);
-  const bool last = it + 1 == stage.batches;
-  if (stage.checkpoint_every > 0 && (it + 1) % stage.checkpoint_every == 0 && !last) {
-    Save(run->index, it + 1, c);
+  ReportBatch(batch_index, *run, losses, *c);
+  const bool last = batch_index + 1 == stage.batches;
+  if (stage.checkpoint_every > 0 && (batch_index + 1) % stage.checkpoint_every == 0 && !last) {
+    Save(run->index, batch_index + 1, c);
   }
   if (c->options.on_batch) {
     Timer callback_timer;
     BatchProgress progress;
     progress.stage = run->index;
     progress.stage_name = stage.name;
-    progress.batch = it + 1;
+    progress.batch = batch_index + 1;
     progress.stage_batches = stage.batches;
     progress.total_batches = state->total_batches;
     progress.solve_seconds = c->run_timer.Seconds() - c->callback_seconds;
@@ -281,15 +282,15 @@ void Solver::RunBatch(int it, StageRun* run, StageProblem* sp, RunContext* c, So
   }
 }
 
-void Solver::ReportBatch(int it, const StageRun& run, const TermLosses& losses,
+void Solver::ReportBatch(int batch_index, const StageRun& run, const TermLosses& losses,
                          const RunContext& c) const {
   const StageConfig& stage = *run.stage;
-  const bool last = it + 1 == stage.batches;
-  if (c.options.quiet || !(it % std::max(1, stage.log_every) == 0 || last)) return;
+  const bool last = batch_index + 1 == stage.batches;
+  if (c.options.quiet || !(batch_index % std::max(1, stage.log_every) == 0 || last)) return;
   const double secs = run.Seconds(c);
   const double rate = run.rays_done / std::max(secs, 1e-9);
-  const double eta = (stage.batches - it - 1) * stage.batch_rays / std::max(rate, 1e-9);
-  std::printf("[%s] %5d/%d", stage.name.c_str(), it + 1, stage.batches);
+  const double eta = (stage.batches - batch_index - 1) * stage.batch_rays / std::max(rate, 1e-9);
+  std::printf("[%s] %5d/%d", stage.name.c_str(), batch_index + 1, stage.batches);
   double total = 0.0;
   for (const auto& [name, value] : losses) {
     std::printf(" %s=%.4g", name.c_str(), value);
@@ -328,7 +329,7 @@ std::vector<Ray> Solver::SampleRays(const StageConfig& stage, const RayBatch& ba
 
 // Schedules fire at their batch also when a resumed run starts there:
 // checkpoints are written before a batch's schedules run.
-void Solver::RunSchedules(int it, double fraction, const StageRun& run, StageProblem* sp,
+void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run, StageProblem* sp,
                           RunContext* c, SolveResult* result) {
   const StageConfig& stage = *run.stage;
   Model& model = *model_;
@@ -337,12 +338,12 @@ void Solver::RunSchedules(int it, double fraction, const StageRun& run, StagePro
                          std::min(1.0, fraction / stage.schedule.anneal_end_fraction);
     model.SetFieldAnnealing(alpha);
   }
-  if (stage.schedule.bounds_refresh_every > 0 && it > 0 &&
-      it % stage.schedule.bounds_refresh_every == 0) {
+  if (stage.schedule.bounds_refresh_every > 0 && batch_index > 0 &&
+      batch_index % stage.schedule.bounds_refresh_every == 0) {
     RefreshBounds();
   }
   for (double at : stage.schedule.bone_reinit_at) {
-    if (model.num_bones() > 0 && it == static_cast<int>(std::lround(at * stage.batches))) {
+    if (model.num_bones() > 0 && batch_index == static_cast<int>(std::lround(at * stage.batches))) {
       ReinitializeBones(c->state);
     }
   }
@@ -350,19 +351,19 @@ void Solver::RunSchedules(int it, double fraction, const StageRun& run, StagePro
   const AutoSizeOptions& auto_size = config_.model.auto_size;
   for (double at : auto_size.grow_at) {
     if (!auto_size.enabled || run.index != 0 ||
-        it != static_cast<int>(std::lround(at * stage.batches))) {
+        batch_index != static_cast<int>(std::lround(at * stage.batches))) {
       continue;
     }
-    Grow(it, run, sp, c, result);
+    Grow(batch_index, run, sp, c, result);
   }
   for (double at : stage.pose_solve.at) {
-    if (it == static_cast<int>(std::lround(at * stage.batches))) {
-      SolvePoses(it, run, sp, c, result);
+    if (batch_index == static_cast<int>(std::lround(at * stage.batches))) {
+      SolvePoses(batch_index, run, sp, c, result);
     }
   }
 }
 
-void Solver::SolvePoses(int it, const StageRun& run, StageProblem* sp, RunContext* c,
+void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, RunContext* c,
                         SolveResult* result) {
   const StageConfig& stage = *run.stage;
   FramePoseContext context;
@@ -374,7 +375,7 @@ void Solver::SolvePoses(int it, const StageRun& run, StageProblem* sp, RunContex
   PoseSolveReport report =
       SolveAllFramePoses(model_.get(), c->sampler, stage, bounds_, context, &c->state->rng);
   report.stage = run.index;
-  report.iteration = it;
+  report.batch = batch_index;
   // The root corrections jumped: their Adam moments are stale.
   for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
     m = m->first.find("/root_delta") != std::string::npos ? c->state->adam.erase(m) : std::next(m);
@@ -397,7 +398,7 @@ void Solver::SolvePoses(int it, const StageRun& run, StageProblem* sp, RunContex
 // A grow step of automatic sizing: the problem drops every block, the model
 // grows, the blocks come back (new sizes and addresses) and the Adam moments
 // follow their entries.
-void Solver::Grow(int it, const StageRun& run, StageProblem* sp, RunContext* c,
+void Solver::Grow(int batch_index, const StageRun& run, StageProblem* sp, RunContext* c,
                   SolveResult* result) {
   const StageConfig& stage = *run.stage;
   Timer grow_timer;
@@ -407,7 +408,7 @@ void Solver::Grow(int it, const StageRun& run, StageProblem* sp, RunContext* c,
       AutoSizeGrow(config_.model.auto_size, c->sampler, stage.sampling, stage.samples_per_ray,
                    bounds_, &c->state->rng, model_.get(), &remaps);
   event.stage = run.index;
-  event.iteration = it;
+  event.batch = batch_index;
   for (auto& [name, moments] : c->state->adam) {
     if (const TangentRemap* remap = remaps.For(name)) remap->Apply(&moments.m, &moments.v);
   }

@@ -29,7 +29,7 @@ T Read(const std::string& in, size_t* pos) {
 std::string SolverState::Serialize() const {
   std::string out = "BANMOST1";
   Append(&out, stage);
-  Append(&out, iteration);
+  Append(&out, batch);
   Append(&out, total_batches);
   Append(&out, lm_radius);
   std::ostringstream rs;
@@ -57,7 +57,7 @@ void SolverState::Deserialize(const std::string& in) {
   if (in.compare(0, 8, "BANMOST1") != 0) ThrowInputError("checkpoint state.bin: bad header");
   size_t pos = 8;
   stage = Read<int>(in, &pos);
-  iteration = Read<int>(in, &pos);
+  batch = Read<int>(in, &pos);
   total_batches = Read<int>(in, &pos);
   lm_radius = Read<double>(in, &pos);
   const uint64_t rn = Read<uint64_t>(in, &pos);

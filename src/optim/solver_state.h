@@ -15,7 +15,7 @@ namespace banmo {
 
 struct SolverState {
   int stage = 0;
-  int iteration = 0;
+  int batch = 0;  // batches done in the stage
   int total_batches = 0;
   std::mt19937 rng;
   double lm_radius = -1.0;  // < 0: the stage's initial radius

@@ -18,14 +18,14 @@ struct StepContext {
   StageProblem* problem = nullptr;
   const StageConfig* stage = nullptr;
   SolverState* state = nullptr;  // Adam moments, LM radius
-  int iteration = 0;             // batch index within the stage (learning-rate schedule)
+  int batch = 0;                 // batch index within the stage (learning-rate schedule)
   // Adam's gradient from ceres::Problem::Evaluate (SolveOptions).
   bool adam_gradient_from_ceres = false;
   // Block names (Model::ForEachBlock): the keys of the Adam moments.
   const std::map<const double*, std::string>* block_names = nullptr;
 };
 
-// The learning rate of batch `iteration` of `iterations` (a.schedule).
+// The learning rate of batch `batch` of `batches` (a.schedule).
 // One-cycle (Smith 2018, as in BANMo's training): linear warm-up from lr/25
 // to lr over warmup_fraction, then cosine decay to lr * final_lr_fraction.
 double LearningRate(const AdamConfig& a, int batch, int batches);

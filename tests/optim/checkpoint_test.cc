@@ -39,7 +39,7 @@ TEST(Checkpoint, PreviousFormatLoadsWithItsInfo) {
   std::string state = "not read";
   const std::unique_ptr<Model> model = LoadCheckpoint(kV1, &info, &state);
   EXPECT_EQ(info.stage, 1);  // written at the end of its only stage
-  EXPECT_EQ(info.iteration, 0);
+  EXPECT_EQ(info.batch, 0);
   EXPECT_NE(info.config.find("samples_per_ray: 8"), std::string::npos) << info.config;
   EXPECT_EQ(state, "");  // the fixture keeps no solver state
   EXPECT_EQ(AllParameters(*model), AllParameters(*LoadModel(kV1)));
@@ -59,7 +59,7 @@ TEST(Checkpoint, RoundTripWritesAModelFolderPlusTheSolverFiles) {
   std::string state;
   const std::unique_ptr<Model> back = LoadCheckpoint(dir.string(), &info, &state);
   EXPECT_EQ(info.stage, 2);
-  EXPECT_EQ(info.iteration, 9);
+  EXPECT_EQ(info.batch, 9);
   EXPECT_EQ(info.config, "seed: 1\n");
   EXPECT_EQ(state, "bytes");
   EXPECT_EQ(AllParameters(*back), AllParameters(*model));
@@ -75,9 +75,13 @@ TEST(Checkpoint, RoundTripWritesAModelFolderPlusTheSolverFiles) {
   EXPECT_EQ(state, "");
   EXPECT_FALSE(fs::exists(dir.string() + ".old"));
 
-  // An unknown checkpoint format names the file and what to do.
+  // The file names the stage's progress `batch` (format 3).
   std::string yaml = ReadText(dir / "checkpoint.yaml");
-  yaml.replace(yaml.find("banmo-checkpoint-2"), 18, "banmo-checkpoint-5");
+  EXPECT_NE(yaml.find("format: banmo-checkpoint-3\nstage: 3\nbatch: 0\n"), std::string::npos)
+      << yaml;
+
+  // An unknown checkpoint format names the file and what to do.
+  yaml.replace(yaml.find("banmo-checkpoint-3"), 18, "banmo-checkpoint-5");
   std::ofstream(dir / "checkpoint.yaml") << yaml;
   try {
     LoadCheckpoint(dir.string(), &info);
@@ -87,6 +91,33 @@ TEST(Checkpoint, RoundTripWritesAModelFolderPlusTheSolverFiles) {
     EXPECT_NE(message.find((dir / "checkpoint.yaml").string()), std::string::npos) << message;
     EXPECT_NE(message.find("banmo-checkpoint-5"), std::string::npos) << message;
     EXPECT_NE(message.find("solve again"), std::string::npos) << message;
+  }
+  fs::remove_all(dir);
+}
+
+// Format 2 (written before the batch index was named `batch`) holds the
+// same number under `iteration`, and still resumes.
+TEST(Checkpoint, FormatTwoReadsItsIterationKeyAsTheBatch) {
+  const std::unique_ptr<Model> model = LoadModel(kV1);
+  const fs::path dir = fs::path(::testing::TempDir()) / "banmo_checkpoint_format_2";
+  fs::remove_all(dir);
+  SaveCheckpoint(dir.string(), *model, CheckpointInfo{1, 4, "seed: 2\n"});
+  std::ofstream(dir / "checkpoint.yaml")
+      << "format: banmo-checkpoint-2\nstage: 2\niteration: 17\nconfig: |\n  seed: 2\n";
+  CheckpointInfo info;
+  LoadCheckpoint(dir.string(), &info);
+  EXPECT_EQ(info.stage, 2);
+  EXPECT_EQ(info.batch, 17);
+  EXPECT_EQ(info.config, "seed: 2\n");
+
+  // Format 3 without its `batch` key is a damaged file.
+  std::ofstream(dir / "checkpoint.yaml")
+      << "format: banmo-checkpoint-3\nstage: 2\niteration: 17\nconfig: |\n  seed: 2\n";
+  try {
+    LoadCheckpoint(dir.string(), &info);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("damaged"), std::string::npos) << e.what();
   }
   fs::remove_all(dir);
 }

@@ -238,7 +238,7 @@ TEST(Solver, ResumeWithPoseSolvesIsBitwiseIdentical) {
   const SolveResult r = solver.Run(options);
   ASSERT_EQ(r.pose_solves.size(), 1u);
   const PoseSolveReport& report = r.pose_solves[0];
-  EXPECT_EQ(report.iteration, 3);
+  EXPECT_EQ(report.batch, 3);
   EXPECT_EQ(static_cast<int>(report.frames.size()), data.NumFrames() - data.NumSkippedFrames());
   EXPECT_GT(report.searched, 0);
   for (const FramePoseSolve& f : report.frames) {
@@ -267,8 +267,8 @@ TEST(Solver, AutoSizeGrowsBonesThenWidthsInATinySolve) {
   Solver solver(data, config, MakeModelForDataset(data, config.model));
   const SolveResult r = solver.Run(options_quiet());
   ASSERT_EQ(r.auto_size.size(), 2u);
-  EXPECT_EQ(r.auto_size[0].iteration, 6);
-  EXPECT_EQ(r.auto_size[1].iteration, 12);
+  EXPECT_EQ(r.auto_size[0].batch, 6);
+  EXPECT_EQ(r.auto_size[1].batch, 12);
   EXPECT_GT(r.auto_size[0].bones_after, 4);
   EXPECT_EQ(r.auto_size[0].sdf_width_after, 32);
   const Model& m = solver.model();
@@ -315,7 +315,7 @@ TEST(Checkpoint, RoundTripAndErrors) {
   std::string state;
   std::unique_ptr<Model> back = LoadCheckpoint(dir, &info, &state);
   EXPECT_EQ(info.stage, 1);
-  EXPECT_EQ(info.iteration, 7);
+  EXPECT_EQ(info.batch, 7);
   EXPECT_EQ(state, "state");
   EXPECT_EQ(AllParameters(*model), AllParameters(*back));
   // A truncated parameter file is an error naming it.

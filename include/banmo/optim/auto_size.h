@@ -145,11 +145,11 @@ struct AutoSizeRemaps {
 
 // What a grow step measured and did.
 struct AutoSizeEvent {
-  int stage = 0, iteration = 0;  // filled by the solver
-  double seconds = 0.0;          // wall time, with the problem rebuild (filled by the solver)
-  int rays = 0;                  // evaluation rays
-  int object_rays = 0;           // of which object rays (attribution)
-  double mean_error = 0.0;       // mean e_r of the object rays
+  int stage = 0, batch = 0;  // filled by the solver
+  double seconds = 0.0;      // wall time, with the problem rebuild (filled by the solver)
+  int rays = 0;              // evaluation rays
+  int object_rays = 0;       // of which object rays (attribution)
+  double mean_error = 0.0;   // mean e_r of the object rays
   int bones_before = 0, bones_after = 0;
   int sdf_width_before = 0, sdf_width_after = 0;
   int color_width_before = 0, color_width_after = 0;

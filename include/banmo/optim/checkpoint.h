@@ -1,5 +1,5 @@
 // Solver checkpoints: the model (a model folder, model/model_file.h) plus
-// what the solver needs to resume: the stage and iteration, the resolved
+// what the solver needs to resume: the stage and batch, the resolved
 // solver config and the solver's state (optimiser moments, RNG state, ...).
 // Written atomically: the files go to a fresh folder that then replaces the
 // old checkpoint by two renames.
@@ -9,12 +9,14 @@
 //                      the model (model/model_file.h: parameters, sizes,
 //                      scene scale, canonical bounds, training sampling)
 //   DIR/checkpoint.yaml
-//                      format "banmo-checkpoint-2", stage, iteration and
-//                      config (the resolved solver config, YAML text)
+//                      format "banmo-checkpoint-3", stage, batch (batches
+//                      done in the stage) and config (the resolved solver
+//                      config, YAML text)
 //   DIR/state.bin      optional solver state (opaque bytes owned by optim/)
-// Checkpoints written before the model file existed (model.yaml of format
-// "banmo-checkpoint-1" holding stage, iteration and config, no
-// checkpoint.yaml) still load.
+// Older checkpoints still load: format "banmo-checkpoint-2" (the same
+// checkpoint.yaml with the key `iteration` for `batch`), and those written
+// before the model file existed (model.yaml of format "banmo-checkpoint-1"
+// holding stage, iteration and config, no checkpoint.yaml).
 #pragma once
 
 #include <memory>
@@ -26,7 +28,7 @@ namespace banmo {
 
 struct CheckpointInfo {
   int stage = 0;       // index of the stage in progress
-  int iteration = 0;   // batches done in that stage
+  int batch = 0;       // batches done in that stage
   std::string config;  // the resolved solver config (YAML text)
 };
 

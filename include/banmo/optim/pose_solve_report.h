@@ -24,7 +24,7 @@ struct FramePoseSolve {
 
 struct PoseSolveReport {
   int stage = 0;  // when it ran: stage index and batch
-  int iteration = 0;
+  int batch = 0;
   std::vector<FramePoseSolve> frames;
   double seconds = 0.0;
   // Medians over the frames, and how many were searched / replaced.

@@ -119,26 +119,26 @@ class Solver {
   // One stage; false when the run was interrupted (checkpoint written).
   bool RunStage(int stage, RunContext* c, SolveResult* result);
   // One batch: schedules, minibatch, step, progress, checkpoint.
-  void RunBatch(int iteration, StageRun* run, StageProblem* problem, RunContext* c,
+  void RunBatch(int batch_index, StageRun* run, StageProblem* problem, RunContext* c,
                 SolveResult* result);
   // Annealing, bounds refresh, bone re-initialisation, automatic sizing,
   // pose solves.
-  void RunSchedules(int iteration, double fraction, const StageRun& run, StageProblem* problem,
+  void RunSchedules(int batch_index, double fraction, const StageRun& run, StageProblem* problem,
                     RunContext* c, SolveResult* result);
-  void Grow(int iteration, const StageRun& run, StageProblem* problem, RunContext* c,
+  void Grow(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
             SolveResult* result);
   // Every frame's root pose by LM on its own rays (optim/pose_solve.h).
-  void SolvePoses(int iteration, const StageRun& run, StageProblem* problem, RunContext* c,
+  void SolvePoses(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
                   SolveResult* result);
   // The minibatch's rays (with importance-resampled depths when the stage
   // asks for them).
   std::vector<Ray> SampleRays(const StageConfig& stage, const RayBatch& batch, RaySampler* sampler,
                               std::mt19937* rng);
-  void ReportBatch(int iteration, const StageRun& run, const TermLosses& losses,
+  void ReportBatch(int batch_index, const StageRun& run, const TermLosses& losses,
                    const RunContext& c) const;
   void NameBlocks(RunContext* c);
   // Writes out_dir/checkpoint (nothing without out_dir).
-  void Save(int stage, int iteration, RunContext* c);
+  void Save(int stage, int batch_index, RunContext* c);
   // Canonical bounds from a coarse extraction of the current surface (10 %
   // margin, within [-2, 2]^3); unchanged if the level set is empty.
   void RefreshBounds();
