@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <opencv2/videoio/registry.hpp>
 #include <set>
 
 #include "banmo/io/codecs.h"
@@ -179,11 +180,32 @@ RawFrames ReadFrameImages(const PrepareOptions& options) {
   return out;
 }
 
+// Opens a video file with the backends that read files (FFmpeg, GStreamer,
+// OpenCV's MJPEG reader), in OpenCV's order. The camera backends that also
+// take a name (V4L2 device paths, gPhoto2 cameras) and the image-sequence
+// reader (--frames is that) are not tried: probing gPhoto2 scans the USB bus,
+// takes about 0.3 s and leaks in libusb, which fails the sanitizer build.
+bool OpenVideoFile(const std::string& path, cv::VideoCapture* cap) {
+  for (const cv::VideoCaptureAPIs api : cv::videoio_registry::getStreamBackends()) {
+    if (api == cv::CAP_GPHOTO2 || api == cv::CAP_V4L2 || api == cv::CAP_IMAGES) continue;
+    try {
+      if (cap->open(path, api)) return true;
+    } catch (const cv::Exception&) {
+      // A backend that throws on this file is one that cannot read it.
+    }
+  }
+  return false;
+}
+
 RawFrames ReadVideoFile(const PrepareOptions& options) {
   RawFrames out;
   out.source = options.video_path;
-  cv::VideoCapture cap(options.video_path);
-  if (!cap.isOpened()) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(options.video_path, ec)) {
+    ThrowInputError(options.video_path, ": cannot open the video file (no such file)");
+  }
+  cv::VideoCapture cap;
+  if (!OpenVideoFile(options.video_path, &cap)) {
     ThrowInputError(options.video_path,
                     ": cannot open the video file (OpenCV VideoCapture: unknown container or "
                     "codec; try extracting the frames with ffmpeg and use --frames)");

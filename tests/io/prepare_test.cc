@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -315,7 +316,11 @@ TEST(Prepare, VideoFileInput) {
   WriteDataset(d, tmp.path() + "/ds");
   EXPECT_EQ(LoadDataset(tmp.path() + "/ds").NumFrames(), 4);
   o.video_path = tmp.path() + "/missing.avi";
-  ExpectPrepareError(o, {"missing.avi", "cannot open"});
+  ExpectPrepareError(o, {"missing.avi", "cannot open", "no such file"});
+  // A file that no backend reads names the file and what to do.
+  std::ofstream(tmp.path() + "/garbage.avi") << "not a video";
+  o.video_path = tmp.path() + "/garbage.avi";
+  ExpectPrepareError(o, {"garbage.avi", "cannot open", "--frames"});
 }
 
 TEST(Prepare, FramesOfDifferentSizesNameTheFirstOffendingFile) {
