@@ -143,6 +143,7 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
     if (group == ParameterGroup::kBones || group == ParameterGroup::kBonesT) {
       scale = a.bone_lr_scale;
     }
+    if (group == ParameterGroup::kLogBeta) scale = a.beta_lr_scale;
     const double bc1 = 1.0 - std::pow(a.beta1, mo.steps);
     const double bc2 = 1.0 - std::pow(a.beta2, mo.steps);
     std::vector<double> delta(tangent);

@@ -74,6 +74,7 @@ void VisitFields(V& v, AdamConfig& o) {
   v("final_lr_fraction", o.final_lr_fraction);
   v("pose_lr_scale", o.pose_lr_scale);
   v("bone_lr_scale", o.bone_lr_scale);
+  v("beta_lr_scale", o.beta_lr_scale);
 }
 
 template <class V>
@@ -602,6 +603,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Fraction(a + ".final_lr_fraction", s.adam.final_lr_fraction);
   c.Positive(a + ".pose_lr_scale", s.adam.pose_lr_scale);
   c.Positive(a + ".bone_lr_scale", s.adam.bone_lr_scale);
+  c.Positive(a + ".beta_lr_scale", s.adam.beta_lr_scale);
 
   const std::string m = p + ".lm";
   c.Positive(m + ".max_cg_iterations", s.lm.max_cg_iterations);

@@ -54,6 +54,26 @@ TEST(Solver, AdamReducesTheLossOnATinyScene) {
   EXPECT_LT(Total(r.stages[0].last_losses), Total(r.stages[0].first_losses));
 }
 
+// Adam's first step moves each coordinate by lr * scale (the bias-corrected
+// m / sqrt(v) is sign(g)), so the group multipliers are visible in one batch:
+// log beta moves by exactly lr * beta_lr_scale (up to epsilon / |g|).
+TEST(Solver, BetaLearningRateScaleMultipliesTheFirstStep) {
+  const Dataset& data = TinyDataset();
+  std::vector<double> moved;
+  for (const double scale : {1.0, 10.0}) {
+    SolverConfig config = TinyConfig(StepRule::kAdam, 1);
+    config.stages[0].adam.schedule = LrSchedule::kConstant;
+    config.stages[0].adam.beta_lr_scale = scale;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    const double before = *solver.model().log_beta();
+    solver.Run(options_quiet());
+    moved.push_back(*solver.model().log_beta() - before);
+  }
+  const double lr = TinyConfig(StepRule::kAdam, 1).stages[0].adam.lr;
+  EXPECT_NEAR(std::abs(moved[0]), lr, 1e-6 * lr);
+  EXPECT_NEAR(moved[1], 10.0 * moved[0], 1e-5 * lr);
+}
+
 TEST(Solver, LmAndAlternateStepRulesRunAndStayFinite) {
   const Dataset& data = TinyDataset();
   for (const StepRule rule : {StepRule::kLm, StepRule::kAlternate}) {

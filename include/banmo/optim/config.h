@@ -84,6 +84,9 @@ struct AdamConfig {
   // Per-group learning-rate multipliers (pose blocks like a larger step).
   double pose_lr_scale = 1.0;
   double bone_lr_scale = 1.0;
+  // VolSDF's log beta: Adam moves a coordinate by about lr a step, so at
+  // lr 2e-3 beta can shrink by at most a factor of about 2 over a stage.
+  double beta_lr_scale = 1.0;
 };
 
 struct LmConfig {
