@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "banmo/deform/bones.h"
+#include "banmo/geometry/box.h"
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/io/npy.h"
@@ -486,8 +487,11 @@ Eigen::AlignedBox3d CanonicalBoundsFromSurface(const Model& model,
 
 Eigen::AlignedBox3d ExtractionBounds(const Model& model) {
   const std::optional<Eigen::AlignedBox3d>& trained = model.canonical_bounds();
-  if (trained && !trained->isEmpty() && trained->min().allFinite() && trained->max().allFinite() &&
-      (trained->sizes().array() > 0.0).all()) {
+  if (trained) {
+    // The model file refuses such boxes and the solver never sets one.
+    CHECK(IsValidBox(*trained)) << "the model's canonical bounds are not a valid box: "
+                                << trained->min().transpose() << " - "
+                                << trained->max().transpose();
     return *trained;
   }
   return Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d::Constant(1.0));

@@ -16,6 +16,7 @@
 #include <sstream>
 #include <vector>
 
+#include "banmo/geometry/box.h"
 #include "banmo/model/model_options_fields.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
@@ -558,8 +559,8 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
     const std::string source = yaml_path + " (canonical_bounds)";
     const Eigen::Vector3d lo = ReadVector3(source, bounds, "min");
     const Eigen::Vector3d hi = ReadVector3(source, bounds, "max");
-    if (!((hi - lo).array() > 0.0).all()) {
-      ThrowInputError(source, ": expected max > min on every axis", kWhatToDo);
+    if (!IsValidBox(Eigen::AlignedBox3d(lo, hi))) {
+      ThrowInputError(source, ": expected finite corners with max > min on every axis", kWhatToDo);
     }
     model->set_canonical_bounds(Eigen::AlignedBox3d(lo, hi));
   }

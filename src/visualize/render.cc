@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "banmo/extract/extract.h"
+#include "banmo/geometry/box.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
@@ -38,8 +39,7 @@ void FrameRenderOptions::Check() const {
   if (!(near_far_margin >= 0.0)) {
     ThrowInputError("near_far_margin: expected >= 0, got ", near_far_margin);
   }
-  if (canonical_bounds.isEmpty() || !canonical_bounds.min().allFinite() ||
-      !canonical_bounds.max().allFinite() || (canonical_bounds.sizes().array() <= 0.0).any()) {
+  if (!IsValidBox(canonical_bounds)) {
     ThrowInputError("canonical_bounds: expected a finite box with max > min on every axis");
   }
   if (chunk_rays <= 0) ThrowInputError("chunk_rays: expected > 0, got ", chunk_rays);

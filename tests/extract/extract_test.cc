@@ -290,10 +290,11 @@ TEST(ExtractionBounds, TheTrainedBoxWhenTheModelHasOne) {
                                     Eigen::Vector3d(1.2, 0.7, 0.45));
   model->set_canonical_bounds(trained);
   EXPECT_TRUE(ExtractionBounds(*model).isApprox(trained));
-  // A degenerate stored box falls back to the unit cube.
+  // A flat box is a programming error (the model file refuses one and the
+  // solver never sets one), not a silent fallback to the unit cube.
   model->set_canonical_bounds(
       Eigen::AlignedBox3d(Eigen::Vector3d::Constant(0.5), Eigen::Vector3d(0.5, 1, 1)));
-  EXPECT_TRUE(ExtractionBounds(*model).isApprox(unit));
+  EXPECT_DEATH(ExtractionBounds(*model), "not a valid box");
 }
 
 TEST(ParseFrameSelection, FormsAndErrors) {

@@ -198,7 +198,7 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   model->set_canonical_bounds(
       Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 1)));
   WriteModelFiles(dir.string(), *model);
-  EXPECT_NE(LoadError(dir).find("expected max > min"), std::string::npos) << LoadError(dir);
+  EXPECT_NE(LoadError(dir).find("max > min on every axis"), std::string::npos) << LoadError(dir);
 }
 
 TEST(ModelFile, FallsBackToTheOldFolderOfAnInterruptedSave) {

@@ -168,6 +168,8 @@ Eigen::AlignedBox3d CanonicalBoundsFromSurface(
 // `banmo solve`) when the model has one, else [-1, 1]^3 (a model of an
 // older format, or an untrained one). Outside the trained box the field was
 // never trained, and the object may reach beyond [-1, 1]^3 (docs/extract.md).
+// A stored box that is not valid (geometry/box.h) fails a CHECK: the model
+// file refuses such boxes and the solver never sets one.
 Eigen::AlignedBox3d ExtractionBounds(const Model& model);
 
 }  // namespace banmo
