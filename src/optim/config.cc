@@ -104,6 +104,7 @@ void VisitFields(V& v, ScheduleConfig& o) {
   v("bounds_refresh_every", o.bounds_refresh_every);
   v("anneal_end_fraction", o.anneal_end_fraction);
   v("delta_skinning_from", o.delta_skinning_from);
+  v("root_free_from", o.root_free_from);
 }
 
 template <class V>
@@ -638,11 +639,17 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
+  c.Fraction(h + ".root_free_from", s.schedule.root_free_from);
 
   const std::string q = p + ".pose_solve";
   c.IncreasingFractions(q + ".at", s.pose_solve.at);
   if (!s.pose_solve.at.empty() && constant.Contains(ParameterGroup::kRoot)) {
     c.Fail(q + ".at", "pose solves move the root poses, which this stage holds constant");
+  }
+  if (!s.pose_solve.at.empty() && s.pose_solve.at.front() < s.schedule.root_free_from) {
+    c.Fail(q + ".at", "a pose solve at ", s.pose_solve.at.front(),
+           " comes before schedule.root_free_from (", s.schedule.root_free_from,
+           "), while the root poses are held constant");
   }
   c.Positive(q + ".rays", s.pose_solve.rays);
   c.Positive(q + ".iterations", s.pose_solve.iterations);

@@ -218,7 +218,7 @@ void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunConte
 
   // ---- The minibatch. ----
   sp->ClearMinibatch();
-  sp->ScheduleDeltaSkinning(fraction);
+  sp->ScheduleGroups(fraction);
   std::vector<Ray> rays = SampleRays(stage, sp->batch(), &c->sampler, &state->rng);
   const Eigen::Matrix3Xd grid =
       UniformPoints(bounds_, stage.sampling.match_grid_points, &state->rng);

@@ -102,23 +102,30 @@ void StageProblem::RemoveAllBlocks() {
   for (double* p : blocks) problem_->RemoveParameterBlock(p);
 }
 
-void StageProblem::ScheduleDeltaSkinning(double fraction) {
+void StageProblem::HoldGroup(ParameterGroup g, bool hold) {
+  hold = hold || configured_constant_.Contains(g);
+  if (hold) {
+    constant_.Insert(g);
+  } else {
+    constant_.Erase(g);
+  }
+  for (double* p : Blocks(g)) {
+    if (hold) {
+      problem_->SetParameterBlockConstant(p);
+    } else {
+      problem_->SetParameterBlockVariable(p);
+    }
+  }
+}
+
+void StageProblem::ScheduleGroups(double fraction) {
+  if (stage_.schedule.root_free_from > 0.0) {
+    HoldGroup(ParameterGroup::kRoot, fraction < stage_.schedule.root_free_from);
+  }
   if (!model_.has_delta_skinning()) return;
   const bool free = fraction >= stage_.schedule.delta_skinning_from;
   for (ParameterGroup g : {ParameterGroup::kDeltaSkinning, ParameterGroup::kPoseCode}) {
-    const bool hold = !free || configured_constant_.Contains(g);
-    if (hold) {
-      constant_.Insert(g);
-    } else {
-      constant_.Erase(g);
-    }
-    for (double* p : Blocks(g)) {
-      if (hold) {
-        problem_->SetParameterBlockConstant(p);
-      } else {
-        problem_->SetParameterBlockVariable(p);
-      }
-    }
+    HoldGroup(g, !free);
   }
   batch_.SetDeltaSkinning(
       (free && !configured_constant_.Contains(ParameterGroup::kDeltaSkinning)) ||

@@ -42,10 +42,13 @@ class StageProblem {
   void AddModelBlocks();
   // Drops every residual and parameter block (before the model grows).
   void RemoveAllBlocks();
-  // Delta skinning (schedule.delta_skinning_from): before the fraction its
-  // groups are held constant, and while MLP_Delta's output is still zero
-  // the batch leaves it out (same values, no cost).
-  void ScheduleDeltaSkinning(double fraction);
+  // The groups a stage frees part-way, at `fraction` of the stage:
+  // - the root corrections (schedule.root_free_from) are held constant
+  //   before their fraction;
+  // - delta skinning (schedule.delta_skinning_from): before the fraction its
+  //   groups are held constant, and while MLP_Delta's output is still zero
+  //   the batch leaves it out (same values, no cost).
+  void ScheduleGroups(double fraction);
 
   // Removes the previous minibatch's residual blocks.
   void ClearMinibatch();
@@ -68,6 +71,8 @@ class StageProblem {
   bool IsMlpWeights(const double* block) const;
 
  private:
+  // Holds group g constant (or frees it, unless the stage holds it).
+  void HoldGroup(ParameterGroup g, bool hold);
   void AddBlock(ParameterGroup group, double* data, int size,
                 std::unique_ptr<ceres::Manifold> manifold);
   void AddRegularizer(std::unique_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss,

@@ -340,6 +340,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = 0.5; }},  // model has none
       {"stages[1].schedule.delta_skinning_from",
        [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = -0.5; }},
+      {"stages[1].schedule.root_free_from",
+       [&](SolverConfig* c) { S(c).schedule.root_free_from = 1.5; }},
       {"stages[1].pose_solve.at[0]", [&](SolverConfig* c) { S(c).pose_solve.at = {-0.1}; }},
       {"stages[1].pose_solve.at[1]",
        [&](SolverConfig* c) {
@@ -349,6 +351,11 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) {
          S(c).pose_solve.at = {0.5};
          S(c).constant = {ParameterGroup::kRoot};
+       }},
+      {"stages[1].pose_solve.at",  // while the schedule holds the root
+       [&](SolverConfig* c) {
+         S(c).pose_solve.at = {0.2};
+         S(c).schedule.root_free_from = 0.3;
        }},
       {"stages[1].pose_solve.rays", [&](SolverConfig* c) { S(c).pose_solve.rays = 0; }},
       {"stages[1].pose_solve.iterations", [&](SolverConfig* c) { S(c).pose_solve.iterations = 0; }},
@@ -545,6 +552,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.bounds_refresh_every = 25;
     s.schedule.anneal_end_fraction = 0.4;
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
+    s.schedule.root_free_from = 0.15;                     // before pose_solve.at[0]
     s.pose_solve.at = {0.2, 0.7};
     s.pose_solve.rays = 96;
     s.pose_solve.iterations = 4;
@@ -663,6 +671,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.pose_solve.search_rotations, t.pose_solve.search_rotations);
     EXPECT_EQ(s.pose_solve.search_keep, t.pose_solve.search_keep);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
+    EXPECT_EQ(s.schedule.root_free_from, t.schedule.root_free_from);
     EXPECT_EQ(s.checkpoint_every, t.checkpoint_every);
     EXPECT_EQ(s.log_every, t.log_every);
   }

@@ -74,6 +74,29 @@ TEST(Solver, BetaLearningRateScaleMultipliesTheFirstStep) {
   EXPECT_NEAR(moved[1], 10.0 * moved[0], 1e-5 * lr);
 }
 
+// schedule.root_free_from: the root corrections stay exactly where they are
+// before the fraction and move after it.
+TEST(Solver, RootCorrectionsAreHeldUntilTheirFraction) {
+  const Dataset& data = TinyDataset();
+  SolverConfig config = TinyConfig(StepRule::kAdam, 4);
+  config.stages[0].schedule.root_free_from = 0.5;  // batches 0 and 1 held
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  const Pose start = solver.model().RootPose(0, 1);
+  std::vector<double> moved;
+  SolveOptions options = options_quiet();
+  options.on_batch = [&](const BatchProgress&, const Model& model) {
+    const Pose now = model.RootPose(0, 1);
+    double d = 0.0;
+    for (int k = 0; k < 7; ++k) d = std::max(d, std::abs(now[k] - start[k]));
+    moved.push_back(d);
+  };
+  solver.Run(options);
+  ASSERT_EQ(moved.size(), 4u);
+  EXPECT_EQ(moved[0], 0.0);
+  EXPECT_EQ(moved[1], 0.0);
+  EXPECT_GT(moved[3], 0.0);
+}
+
 TEST(Solver, LmAndAlternateStepRulesRunAndStayFinite) {
   const Dataset& data = TinyDataset();
   for (const StepRule rule : {StepRule::kLm, StepRule::kAlternate}) {

@@ -113,6 +113,10 @@ struct ScheduleConfig {
   int bounds_refresh_every = 0;        // batches between canonical-bounds refreshes (0 = never)
   double anneal_end_fraction = 0.0;  // coarse-to-fine PE annealing reaches all bands here (0 = off)
   double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)
+  // Fraction of the stage from which the root corrections are free; before
+  // it they are held constant, so the shape first forms in the initial
+  // root poses (0: free from the start).
+  double root_free_from = 0.0;
 };
 
 // Per-frame root-pose solves (docs/solver.md, "Pose solves"): at the given
