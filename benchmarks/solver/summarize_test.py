@@ -43,6 +43,10 @@ def write_run(work, group, name, scene, points, done, vertices=100, legacy=False
             f.write(f"batches {10 * (len(points) - 1)}\nsolve_seconds {points[-1][0]}\n")
 
 
+ADAM_LM_CONFIGS = "all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n"
+NOISE50_STABILITY = "all noise50 quad_n\n"
+
+
 def write_tables(tmp, configs, stability):
     """tmp/here/{configs,stability}.txt and a README with the empty block;
     returns (here, readme)."""
@@ -66,9 +70,7 @@ class RestoreTest(unittest.TestCase):
     def test_round_trip(self):
         with tempfile.TemporaryDirectory() as tmp:
             work, res = os.path.join(tmp, "work"), os.path.join(tmp, "res")
-            here, readme = write_tables(
-                tmp, "all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n",
-                "all noise50 quad_n\n")
+            here, readme = write_tables(tmp, ADAM_LM_CONFIGS, NOISE50_STABILITY)
             write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20), (10, 15)], True)
             write_run(work, "compare", "lm", "quad", [(0, 30), (8, 14)], True)
             write_run(work, "stability", "noise50", "quad_n", [(0, 30), (4, 25)], False)
@@ -110,9 +112,7 @@ class RestoreTest(unittest.TestCase):
     def test_traces_of_the_old_column_name_mix_with_new_ones(self):
         with tempfile.TemporaryDirectory() as tmp:
             work, res = os.path.join(tmp, "work"), os.path.join(tmp, "res")
-            here, readme = write_tables(
-                tmp, "all step_rule adam\nall step_rule lm stages[*].step_rule=lm\n",
-                "all noise50 quad_n\n")
+            here, readme = write_tables(tmp, ADAM_LM_CONFIGS, NOISE50_STABILITY)
             write_run(work, "compare", "adam", "quad", [(0, 30), (5, 20)], True, legacy=True)
             write_run(work, "compare", "lm", "quad", [(0, 30), (8, 14)], True)
             self.run_summarize("--mode", "full", "--work", work, "--here", here,
