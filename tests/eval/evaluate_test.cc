@@ -4,6 +4,7 @@
 
 #include <limits>
 
+#include "../common/input_error.h"
 #include "banmo/util/error.h"
 #include "test_shapes.h"
 
@@ -36,14 +37,7 @@ EvalOptions DenseOptions() {
   return options;
 }
 
-std::string ErrorOf(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using testing::ErrorOf;
 
 TEST(EvaluatePair, IdenticalMeshesGiveZeroAndFullFscore) {
   const TriangleMesh blob = Blob(kCenter);

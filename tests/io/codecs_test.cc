@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/input_error.h"
 #include "banmo/util/error.h"
 
 namespace banmo {
@@ -20,16 +21,7 @@ std::string EncodePng(const cv::Mat& image) {
   return std::string(bytes.begin(), bytes.end());
 }
 
-// The message of the InputError `f` throws ("" if none).
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::ErrorOf;
 
 TEST(PngInfo, ReadsTheHeaderOfEachKind) {
   const PngInfo grey8 = ParsePngInfo(EncodePng(cv::Mat(7, 5, CV_8UC1, cv::Scalar(3))), "g");

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/input_error.h"
 #include "banmo/model/model.h"
 #include "banmo/util/error.h"
 
@@ -22,15 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The message of the InputError thrown by fn ("" if none is thrown).
-std::string ErrorOf(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::ErrorOf;
 
 std::string ParseError(const std::string& yaml) {
   return ErrorOf([&] { ParseSolverConfig(yaml, "test.yaml"); });
