@@ -141,11 +141,18 @@ int RunSolve(int argc, char** argv) {
   }
   std::printf("banmo solve: %zu stage(s) in %.1f s\n", result.stages.size(), timer.Seconds());
   if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(solver.model(), dataset)) {
-    WriteFileAtomic(out_dir + "/root_pose_errors.csv", RootPoseErrorsCsv(*e));
+    const std::optional<RootPoseErrors> body = ComputeBodyPoseErrors(solver.model(), dataset);
+    WriteFileAtomic(out_dir + "/root_pose_errors.csv", RootPoseErrorsCsv(*e, &*body));
     std::printf(
         "root poses: rotation error %.2f deg mean, %.2f deg p90, %.2f deg max against the "
         "ground truth (after a global alignment of %.2f deg; %s/root_pose_errors.csv)\n",
         e->mean_deg, e->p90_deg, e->max_deg, e->alignment_deg, out_dir.c_str());
+    if (solver.model().num_bones() > 0) {
+      std::printf(
+          "body poses (root x mean bone rotation): rotation error %.2f deg mean, %.2f deg p90, "
+          "%.2f deg max\n",
+          body->mean_deg, body->p90_deg, body->max_deg);
+    }
   }
   if (!no_extract) {
     WriteSolveOutputs(solver.model(), dataset, out_dir, resolution, !no_eval);

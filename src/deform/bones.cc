@@ -2,6 +2,8 @@
 
 #include <ceres/jet.h>
 
+#include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 
 #include "banmo/util/logging.h"
@@ -16,6 +18,45 @@ void SkinningWeights(int num_bones, const double* logits, double* weights) {
     denom += weights[b];
   }
   for (int b = 0; b < num_bones; ++b) weights[b] /= denom;
+}
+
+Eigen::Vector4d MeanBoneRotation(int num_bones, const double* bones_t, const double* weights) {
+  CHECK_GT(num_bones, 0);
+  auto weight = [&](int b) { return weights != nullptr ? weights[b] : 1.0; };
+  int heaviest = 0;
+  for (int b = 1; b < num_bones; ++b) {
+    if (weight(b) > weight(heaviest)) heaviest = b;
+  }
+  CHECK_GT(weight(heaviest), 0.0);
+  const Eigen::Map<const Eigen::Vector4d> q_ref(bones_t + kPoseSize * heaviest + kPoseQw);
+  Eigen::Vector4d q = Eigen::Vector4d::Zero();
+  for (int b = 0; b < num_bones; ++b) {
+    Eigen::Vector4d qb(bones_t + kPoseSize * b + kPoseQw);
+    qb.normalize();
+    q += (qb.dot(q_ref) < 0.0 ? -weight(b) : weight(b)) * qb;
+  }
+  // Every term points into the heaviest bone's hemisphere, so
+  // |q| >= q . q_ref / |q_ref| >= w_max > 0: the normalisation is safe.
+  return q.normalized();
+}
+
+void TransferBoneMotion(int old_num_bones, const double* old_bones, const double* old_bones_t,
+                        int new_num_bones, const double* new_bones, double* new_bones_t) {
+  std::vector<double> logits(old_num_bones), w(old_num_bones);
+  for (int k = 0; k < new_num_bones; ++k) {
+    double* out = new_bones_t + kPoseSize * k;
+    PoseSetIdentity(out);
+    if (old_num_bones == 0) continue;
+    const double* c = new_bones + kBoneSize * k + kBoneCenter;
+    for (int b = 0; b < old_num_bones; ++b) logits[b] = BoneLogit(old_bones + kBoneSize * b, c);
+    SkinningWeights(old_num_bones, logits.data(), w.data());
+    const Eigen::Vector4d q = MeanBoneRotation(old_num_bones, old_bones_t, w.data());
+    std::copy(q.data(), q.data() + 4, out + kPoseQw);
+    double warped[3], rotated[3];
+    ForwardWarp(old_num_bones, old_bones, old_bones_t, c, warped);
+    PoseRotateVector(out, c, rotated);
+    for (int i = 0; i < 3; ++i) out[kPoseT + i] = warped[i] - rotated[i];
+  }
 }
 
 void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bones,

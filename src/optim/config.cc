@@ -96,11 +96,13 @@ void VisitFields(V& v, SamplingConfig& o) {
   v("eikonal_points", o.eikonal_points);
   v("match_grid_points", o.match_grid_points);
   v("match_top_k", o.match_top_k);
+  v("frames_per_batch", o.frames_per_batch);
 }
 
 template <class V>
 void VisitFields(V& v, ScheduleConfig& o) {
   v("bone_reinit_at", o.bone_reinit_at);
+  v("bone_reinit_keep_motion", o.bone_reinit_keep_motion);
   v("bounds_refresh_every", o.bounds_refresh_every);
   v("anneal_end_fraction", o.anneal_end_fraction);
   v("delta_skinning_from", o.delta_skinning_from);
@@ -110,6 +112,7 @@ void VisitFields(V& v, ScheduleConfig& o) {
 template <class V>
 void VisitFields(V& v, PoseSolveConfig& o) {
   v("at", o.at);
+  v("bones", o.bones);
   v("rays", o.rays);
   v("iterations", o.iterations);
   v("search_ratio", o.search_ratio);
@@ -586,8 +589,9 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
     if (group == ParameterGroup::kDeltaSkinning || group == ParameterGroup::kPoseCode) continue;
     all_constant = all_constant && constant.Contains(group);
   }
-  if (all_constant) {
-    c.Fail(p + ".constant", "every parameter group is constant (nothing to optimise)");
+  if (all_constant && s.pose_solve.at.empty()) {
+    c.Fail(p + ".constant",
+           "every parameter group is constant and there is no pose solve (nothing to optimise)");
   }
 
   const std::string a = p + ".adam";
@@ -629,6 +633,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Positive(g + ".eikonal_points", s.sampling.eikonal_points);
   c.Positive(g + ".match_grid_points", s.sampling.match_grid_points);
   c.Positive(g + ".match_top_k", s.sampling.match_top_k);
+  c.NonNegative(g + ".frames_per_batch", s.sampling.frames_per_batch);
   if (s.sampling.match_top_k > s.sampling.match_grid_points) {
     c.Fail(g + ".match_top_k", "expected <= sampling.match_grid_points (",
            s.sampling.match_grid_points, "), got ", s.sampling.match_top_k);
@@ -643,10 +648,13 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
 
   const std::string q = p + ".pose_solve";
   c.IncreasingFractions(q + ".at", s.pose_solve.at);
-  if (!s.pose_solve.at.empty() && constant.Contains(ParameterGroup::kRoot)) {
-    c.Fail(q + ".at", "pose solves move the root poses, which this stage holds constant");
+  if (!s.pose_solve.at.empty() && constant.Contains(ParameterGroup::kRoot) && !s.pose_solve.bones) {
+    c.Fail(q + ".at",
+           "pose solves move the root poses, which this stage holds constant (set "
+           "pose_solve.bones: true to solve the bone transforms alone)");
   }
-  if (!s.pose_solve.at.empty() && s.pose_solve.at.front() < s.schedule.root_free_from) {
+  if (!s.pose_solve.at.empty() && s.pose_solve.at.front() < s.schedule.root_free_from &&
+      !constant.Contains(ParameterGroup::kRoot)) {
     c.Fail(q + ".at", "a pose solve at ", s.pose_solve.at.front(),
            " comes before schedule.root_free_from (", s.schedule.root_free_from,
            "), while the root poses are held constant");

@@ -27,12 +27,15 @@ double Median(std::vector<double> v) {
 }
 
 // One frame's pose problem: the frame's rays' composite terms, every block but
-// the frame's root correction constant, the batch without field Jacobians.
+// the frame's root correction and/or bone transforms constant, the batch
+// without field Jacobians.
 class FramePoseProblem {
  public:
   FramePoseProblem(Model* model, int video, int frame, std::vector<Ray> rays,
                    const FramePoseContext& context)
-      : batch_(model, context.batch), root_(model->frame(video, frame).root_delta.data()) {
+      : batch_(model, context.batch),
+        root_(model->frame(video, frame).root_delta.data()),
+        bones_t_(model->num_bones() > 0 ? model->frame(video, frame).bones_t.data() : nullptr) {
     batch_.SetDeltaSkinning(context.delta_skinning);
     batch_.SetFieldJacobians(false);
     batch_.SetMatchGrid(context.match_grid);
@@ -52,16 +55,25 @@ class FramePoseProblem {
             batch_.TermParameterBlocks(r, term));
       }
     }
-    if (!problem_->HasParameterBlock(root_)) return;  // no residuals: nothing to solve
-    problem_->SetManifold(root_, MakePoseManifold().release());
+    if (!context.solve_root || !problem_->HasParameterBlock(root_)) root_solved_ = false;
+    if (!context.solve_bones || bones_t_ == nullptr || !problem_->HasParameterBlock(bones_t_)) {
+      bones_solved_ = false;
+    }
+    if (empty()) return;  // no residuals or nothing free: nothing to solve
+    if (root_solved_) problem_->SetManifold(root_, MakePoseManifold().release());
+    if (bones_solved_) {
+      problem_->SetManifold(bones_t_, MakeStackedPoseManifold(model->num_bones()).release());
+    }
     std::vector<double*> blocks;
     problem_->GetParameterBlocks(&blocks);
     for (double* b : blocks) {
-      if (b != root_) problem_->SetParameterBlockConstant(b);
+      const bool free = (b == root_ && root_solved_) || (b == bones_t_ && bones_solved_);
+      if (!free) problem_->SetParameterBlockConstant(b);
     }
   }
 
-  bool empty() const { return !problem_->HasParameterBlock(root_); }
+  bool empty() const { return !root_solved_ && !bones_solved_; }
+  bool root_solved() const { return root_solved_; }
   int num_rays() const { return batch_.num_rays(); }
   Pose root() const { return Eigen::Map<const Pose>(root_); }
   void set_root(const Pose& p) { std::copy(p.data(), p.data() + kPoseSize, root_); }
@@ -84,7 +96,7 @@ class FramePoseProblem {
     ceres::Solver::Options so;
     so.minimizer_type = ceres::TRUST_REGION;
     so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-    so.linear_solver_type = ceres::DENSE_QR;  // 6 unknowns
+    so.linear_solver_type = ceres::DENSE_QR;  // 6 + 6 B unknowns at most
     so.max_num_iterations = iterations;
     so.num_threads = 1;  // the heavy work is in RayBatch, which is parallel
     so.logging_type = ceres::SILENT;
@@ -100,6 +112,9 @@ class FramePoseProblem {
  private:
   RayBatch batch_;
   double* root_;
+  double* bones_t_;  // null without bones
+  bool root_solved_ = true;
+  bool bones_solved_ = true;
   std::unique_ptr<ceres::Problem> problem_;
 };
 
@@ -167,7 +182,7 @@ FramePoseSolve SolveFramePose(Model* model, int video, int frame, std::vector<Ra
   out.cost_before = local_solve.cost_before;
   out.cost_after = local_solve.cost_after;
   out.iterations = local_solve.iterations;
-  if (search) {
+  if (search && problem.root_solved()) {
     out.searched = true;
     const Pose local = problem.root();
     std::vector<Pose> candidates =
@@ -224,7 +239,7 @@ PoseSolveReport SolveAllFramePoses(Model* model, const RaySampler& sampler,
   }
   report.median_cost_before = Median(before);
   const double median = Median(after);
-  if (config.search_ratio > 0) {
+  if (config.search_ratio > 0 && context.solve_root) {
     for (size_t i = 0; i < report.frames.size(); ++i) {
       FramePoseSolve& f = report.frames[i];
       if (!(f.cost_after > config.search_ratio * median)) continue;

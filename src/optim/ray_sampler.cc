@@ -107,7 +107,23 @@ std::vector<Ray> RaySampler::Sample(int count, int samples_per_ray, const Sampli
           MakeRay(p.video, p.frame, x, y, samples_per_ray, sampling, model, bounds, rng));
     }
   }
-  std::uniform_int_distribution<int> pick_frame(0, static_cast<int>(frames_.size()) - 1);
+  const int num_frames = static_cast<int>(frames_.size());
+  if (sampling.frames_per_batch > 0 && sampling.frames_per_batch < num_frames) {
+    // A partial Fisher-Yates shuffle picks the batch's distinct frames; the
+    // rays go round them in turn, so each gets count / frames_per_batch
+    // (the first ones one more).
+    std::vector<int> order(num_frames);
+    for (int i = 0; i < num_frames; ++i) order[i] = i;
+    for (int i = 0; i < sampling.frames_per_batch; ++i) {
+      std::swap(order[i], order[std::uniform_int_distribution<int>(i, num_frames - 1)(*rng)]);
+    }
+    for (int i = 0; static_cast<int>(rays.size()) < count; ++i) {
+      const FrameRef fr = frames_[order[i % sampling.frames_per_batch]];
+      rays.push_back(RandomRay(fr.video, fr.frame, samples_per_ray, sampling, model, bounds, rng));
+    }
+    return rays;
+  }
+  std::uniform_int_distribution<int> pick_frame(0, num_frames - 1);
   while (static_cast<int>(rays.size()) < count) {
     const FrameRef fr = frames_[pick_frame(*rng)];
     rays.push_back(RandomRay(fr.video, fr.frame, samples_per_ray, sampling, model, bounds, rng));

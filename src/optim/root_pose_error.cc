@@ -66,25 +66,48 @@ std::optional<RootPoseErrors> Errors(const Dataset& dataset, const Estimate& est
   return out;
 }
 
-}  // namespace
-
-std::optional<RootPoseErrors> ComputeRootPoseErrors(const Model& model, const Dataset& dataset) {
+void CheckSameFrames(const Model& model, const Dataset& dataset) {
   CHECK_EQ(model.num_videos(), static_cast<int>(dataset.videos.size()));
   for (int v = 0; v < model.num_videos(); ++v) {
     CHECK_EQ(model.video(v).frames.size(), dataset.videos[v].frames.size());
   }
+}
+
+}  // namespace
+
+std::optional<RootPoseErrors> ComputeRootPoseErrors(const Model& model, const Dataset& dataset) {
+  CheckSameFrames(model, dataset);
   return Errors(dataset, [&](int v, int t) { return model.RootPose(v, t); });
+}
+
+std::optional<RootPoseErrors> ComputeBodyPoseErrors(const Model& model, const Dataset& dataset) {
+  CheckSameFrames(model, dataset);
+  return Errors(dataset, [&](int v, int t) {
+    const Pose root = model.RootPose(v, t);
+    if (model.num_bones() == 0) return root;
+    Pose mean = PoseIdentity();
+    const Eigen::Vector4d q = MeanBoneRotation(model.num_bones(), model.frame(v, t).bones_t.data());
+    std::copy(q.data(), q.data() + 4, mean.data() + kPoseQw);
+    Pose body;
+    PoseCompose(root.data(), mean.data(), body.data());
+    return body;
+  });
 }
 
 std::optional<RootPoseErrors> InitialRootPoseErrors(const Dataset& dataset) {
   return Errors(dataset, [&](int v, int t) { return dataset.videos[v].frames[t].root_pose_init; });
 }
 
-std::string RootPoseErrorsCsv(const RootPoseErrors& errors) {
+std::string RootPoseErrorsCsv(const RootPoseErrors& errors, const RootPoseErrors* body) {
+  if (body != nullptr) CHECK_EQ(body->frames.size(), errors.frames.size());
   std::ostringstream out;
-  out << "video,frame,rotation_error_deg\n";
-  for (const auto& f : errors.frames) {
-    out << f.video << "," << f.frame << "," << FormatDouble(f.rotation_deg) << "\n";
+  out << "video,frame,rotation_error_deg" << (body != nullptr ? ",body_rotation_error_deg" : "")
+      << "\n";
+  for (size_t i = 0; i < errors.frames.size(); ++i) {
+    const RootPoseErrors::FrameError& f = errors.frames[i];
+    out << f.video << "," << f.frame << "," << FormatDouble(f.rotation_deg);
+    if (body != nullptr) out << "," << FormatDouble(body->frames[i].rotation_deg);
+    out << "\n";
   }
   return out.str();
 }

@@ -1,5 +1,6 @@
 #include "banmo/optim/solver.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -299,6 +300,10 @@ void Solver::ReportBatch(int batch_index, const StageRun& run, const TermLosses&
   std::printf(" | total=%.4g", total);
   if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(*model_, dataset_)) {
     std::printf(" | root rot err %.1f/%.1f deg", e->mean_deg, e->p90_deg);
+    if (model_->num_bones() > 0) {
+      const std::optional<RootPoseErrors> body = ComputeBodyPoseErrors(*model_, dataset_);
+      std::printf(", body %.1f/%.1f", body->mean_deg, body->p90_deg);
+    }
   }
   std::printf(" | %.0f rays/s | ETA %.0fs\n", rate, eta);
   std::fflush(stdout);
@@ -344,7 +349,7 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
   }
   for (double at : stage.schedule.bone_reinit_at) {
     if (model.num_bones() > 0 && batch_index == static_cast<int>(std::lround(at * stage.batches))) {
-      ReinitializeBones(c->state);
+      ReinitializeBones(stage.schedule.bone_reinit_keep_motion, c->state);
     }
   }
   // Automatic model sizing (optim/auto_size.h), first stage only.
@@ -372,13 +377,18 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   context.robust = sp->ray_robust();
   context.delta_skinning = sp->batch().delta_skinning();
   context.match_grid = UniformPoints(bounds_, stage.sampling.match_grid_points, &c->state->rng);
+  context.solve_root = std::find(stage.constant.begin(), stage.constant.end(),
+                                 ParameterGroup::kRoot) == stage.constant.end();
+  context.solve_bones = stage.pose_solve.bones;
   PoseSolveReport report =
       SolveAllFramePoses(model_.get(), c->sampler, stage, bounds_, context, &c->state->rng);
   report.stage = run.index;
   report.batch = batch_index;
-  // The root corrections jumped: their Adam moments are stale.
+  // The solved blocks jumped: their Adam moments are stale.
   for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
-    m = m->first.find("/root_delta") != std::string::npos ? c->state->adam.erase(m) : std::next(m);
+    const bool solved = (context.solve_root && m->first.find("/root_delta") != std::string::npos) ||
+                        (context.solve_bones && m->first.find("/bones_t") != std::string::npos);
+    m = solved ? c->state->adam.erase(m) : std::next(m);
   }
   sp->batch().Invalidate();
   if (!c->options.quiet) {
@@ -429,7 +439,7 @@ namespace banmo {
 
 void Solver::RefreshBounds() { bounds_ = CanonicalBoundsFromSurface(*model_, bounds_); }
 
-void Solver::ReinitializeBones(SolverState* state) {
+void Solver::ReinitializeBones(bool keep_motion, SolverState* state) {
   Model& model = *model_;
   const int B = model.num_bones();
   ExtractOptions options;
@@ -445,11 +455,17 @@ void Solver::ReinitializeBones(SolverState* state) {
   if (mesh.NumVertices() < B) return;
   const std::vector<Eigen::Vector3d> centres =
       BoneCentresFromSurface(mesh, B, static_cast<uint32_t>(state->rng()));
+  const std::vector<double> old_bones(model.bones(), model.bones() + kBoneSize * B);
   InitializeBones(centres, model.options().init_bone_scale, model.bones());
   for (int v = 0; v < model.num_videos(); ++v) {
     for (size_t t = 0; t < model.video(v).frames.size(); ++t) {
       double* bones_t = model.frame(v, t).bones_t.data();
-      for (int b = 0; b < B; ++b) PoseSetIdentity(bones_t + kPoseSize * b);
+      if (keep_motion) {
+        const std::vector<double> old_t(bones_t, bones_t + kPoseSize * B);
+        TransferBoneMotion(B, old_bones.data(), old_t.data(), B, model.bones(), bones_t);
+      } else {
+        for (int b = 0; b < B; ++b) PoseSetIdentity(bones_t + kPoseSize * b);
+      }
     }
   }
   // Delta logits were learnt for the old bones: back to zero (the output

@@ -91,6 +91,101 @@ TEST(Warps, RigidMotionOfAllBonesIsInvertedExactly) {
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(back[k], x[k], 1e-12);
 }
 
+// Re-initialised bones keep the frame's motion: one rigid motion of every
+// old bone is handed to every new bone exactly (with the sign of some old
+// quaternions flipped, which is the same rotation), and in general each
+// new centre lands where the old forward warp takes it.
+TEST(TransferBoneMotion, KeepsOneRigidMotionExactly) {
+  Rig old_rig = RandomRig(5, 4, 0.0);
+  const Pose m =
+      PoseFromAngleAxis(Eigen::Vector3d(0.9, -0.4, 1.2), Eigen::Vector3d(0.3, -0.5, 0.2));
+  for (int b = 0; b < 5; ++b) {
+    double* j = old_rig.bones_t.data() + kPoseSize * b;
+    std::copy(m.data(), m.data() + kPoseSize, j);
+    if (b % 2 == 1) {
+      for (int k = 0; k < 4; ++k) j[kPoseQw + k] = -j[kPoseQw + k];
+    }
+  }
+  const Rig new_rig = RandomRig(7, 9, 0.0);
+  std::vector<double> new_t(kPoseSize * 7);
+  TransferBoneMotion(5, old_rig.bones.data(), old_rig.bones_t.data(), 7, new_rig.bones.data(),
+                     new_t.data());
+  for (int k = 0; k < 7; ++k) {
+    const double* j = new_t.data() + kPoseSize * k;
+    const double sign = j[kPoseQw] * m[kPoseQw] < 0.0 ? -1.0 : 1.0;
+    // A weighted mean of equal unit quaternions and a blend of equal points:
+    // rounding only.
+    for (int i = 0; i < 4; ++i) EXPECT_NEAR(sign * j[kPoseQw + i], m[kPoseQw + i], 1e-14);
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(j[kPoseT + i], m[kPoseT + i], 1e-14);
+  }
+}
+
+TEST(TransferBoneMotion, NewCentresFollowTheOldForwardWarp) {
+  const Rig old_rig = RandomRig(4, 21, 0.5);
+  const Rig new_rig = RandomRig(6, 22, 0.0);
+  std::vector<double> new_t(kPoseSize * 6);
+  TransferBoneMotion(4, old_rig.bones.data(), old_rig.bones_t.data(), 6, new_rig.bones.data(),
+                     new_t.data());
+  for (int k = 0; k < 6; ++k) {
+    const double* c = new_rig.bones.data() + kBoneSize * k + kBoneCenter;
+    double expected[3], moved[3];
+    ForwardWarp(4, old_rig.bones.data(), old_rig.bones_t.data(), c, expected);
+    PoseTransformPoint(new_t.data() + kPoseSize * k, c, moved);
+    const Eigen::Map<const Eigen::Vector4d> q(new_t.data() + kPoseSize * k + kPoseQw);
+    EXPECT_NEAR(q.norm(), 1.0, 1e-14);
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(moved[i], expected[i], 1e-14);
+  }
+  // A new bone on an old bone's centre, where that bone outweighs the rest
+  // (small Gaussians far apart), takes that bone's rotation.
+  Rig far = RandomRig(3, 5, 0.6);
+  for (int b = 0; b < 3; ++b) {
+    double* bone = far.bones.data() + kBoneSize * b;
+    for (int i = 0; i < 3; ++i) bone[kBoneCenter + i] = i == 0 ? 2.0 * b : 0.0;
+    for (int i = 0; i < 3; ++i) bone[kBoneLogScale + i] = std::log(0.1);
+  }
+  std::vector<double> one_t(kPoseSize * 3);
+  TransferBoneMotion(3, far.bones.data(), far.bones_t.data(), 3, far.bones.data(), one_t.data());
+  for (int b = 0; b < 3; ++b) {
+    // Neighbours 2 apart at scale 0.1: weights below exp(-200) / 1.
+    EXPECT_LT(
+        RotationAngleBetween(one_t.data() + kPoseSize * b, far.bones_t.data() + kPoseSize * b),
+        1e-12);
+  }
+}
+
+// Turning every bone by M turns the mean by M (left multiplication is a
+// linear isometry of the quaternions), whatever the signs of the inputs.
+TEST(MeanBoneRotation, TurnsWithTheBones) {
+  Rig rig = RandomRig(4, 31, 0.7);
+  const double weights[4] = {0.1, 0.5, 0.3, 0.1};
+  const Eigen::Vector4d before = MeanBoneRotation(4, rig.bones_t.data(), weights);
+  const Pose m = PoseFromAngleAxis(Eigen::Vector3d(-1.1, 0.4, 2.0), Eigen::Vector3d(1, 2, 3));
+  for (int b = 0; b < 4; ++b) {
+    double* j = rig.bones_t.data() + kPoseSize * b;
+    const Pose old = Eigen::Map<const Pose>(j);
+    PoseCompose(m.data(), old.data(), j);
+    if (b == 2) {
+      for (int k = 0; k < 4; ++k) j[kPoseQw + k] = -j[kPoseQw + k];
+    }
+  }
+  const Eigen::Vector4d after = MeanBoneRotation(4, rig.bones_t.data(), weights);
+  const Eigen::Quaterniond expected =
+      Eigen::Quaterniond(m[0], m[1], m[2], m[3]) *
+      Eigen::Quaterniond(before[0], before[1], before[2], before[3]);
+  EXPECT_NEAR(
+      std::abs(after.dot(Eigen::Vector4d(expected.w(), expected.x(), expected.y(), expected.z()))),
+      1.0, 1e-14);
+}
+
+TEST(TransferBoneMotion, IdentityWithoutOldBones) {
+  const Rig new_rig = RandomRig(2, 3, 0.0);
+  std::vector<double> new_t(kPoseSize * 2, 5.0);
+  TransferBoneMotion(0, nullptr, nullptr, 2, new_rig.bones.data(), new_t.data());
+  for (int k = 0; k < 2; ++k) {
+    for (int i = 0; i < kPoseSize; ++i) EXPECT_EQ(new_t[kPoseSize * k + i], PoseIdentity()[i]);
+  }
+}
+
 TEST(Skinning, WeightsSumToOneForExtremeLogits) {
   const double logits[4] = {1e4, -1e8, 1e4 - 2.0, -3.0};
   double w[4];

@@ -317,6 +317,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].sampling.match_grid_points",
        [&](SolverConfig* c) { S(c).sampling.match_grid_points = 0; }},
       {"stages[1].sampling.match_top_k", [&](SolverConfig* c) { S(c).sampling.match_top_k = 0; }},
+      {"stages[1].sampling.frames_per_batch",
+       [&](SolverConfig* c) { S(c).sampling.frames_per_batch = -1; }},
       {"stages[1].sampling.match_top_k",
        [&](SolverConfig* c) { S(c).sampling.match_top_k = S(c).sampling.match_grid_points + 1; }},
       {"stages[1].schedule.bone_reinit_at[0]",
@@ -411,6 +413,30 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
     const std::string parse_message = ErrorOf([&] { ParseSolverConfig(yaml, "x.yaml"); });
     EXPECT_EQ(parse_message.rfind(message + " (line ", 0), 0u) << parse_message;
   }
+}
+
+// pose_solve.bones solves the bone transforms: a stage that holds the root
+// constant may then have pose solves, and a stage of pose solves alone
+// (every group constant) is not empty.
+TEST(SolverConfig, BonePoseSolvesMayHoldTheRootOrEverything) {
+  SolverConfig config;
+  config.stages.resize(2);
+  StageConfig& s = config.stages[1];
+  s.constant = {ParameterGroup::kRoot};
+  s.pose_solve.at = {0.5};
+  EXPECT_NE(ErrorOf([&] { CheckSolverConfig(config, "x.yaml"); }).find("stages[1].pose_solve.at"),
+            std::string::npos);
+  s.pose_solve.bones = true;
+  EXPECT_NO_THROW(CheckSolverConfig(config, "x.yaml"));
+  s.constant.clear();
+  for (const auto& [group, name] : EnumNames<ParameterGroup>::kNames) s.constant.push_back(group);
+  s.pose_solve.at = {0.0};
+  EXPECT_NO_THROW(CheckSolverConfig(config, "x.yaml"));
+  s.pose_solve.at.clear();
+  EXPECT_NE(ErrorOf([&] {
+              CheckSolverConfig(config, "x.yaml");
+            }).find("stages[1].constant: every parameter group is constant"),
+            std::string::npos);
 }
 
 TEST(SolverConfig, ConstraintErrorsFromYamlGiveTheLine) {
@@ -541,7 +567,9 @@ SolverConfig EveryFieldChanged() {
     s.sampling.eikonal_points = 100;
     s.sampling.match_grid_points = 1000;
     s.sampling.match_top_k = 10;
+    s.sampling.frames_per_batch = 6;
     s.schedule.bone_reinit_at = {0.1, 0.9};
+    s.schedule.bone_reinit_keep_motion = true;
     s.schedule.bounds_refresh_every = 25;
     s.schedule.anneal_end_fraction = 0.4;
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
@@ -552,6 +580,7 @@ SolverConfig EveryFieldChanged() {
     s.pose_solve.search_ratio = 2.5;
     s.pose_solve.search_rotations = 24;
     s.pose_solve.search_keep = 2;
+    s.pose_solve.bones = true;
     s.checkpoint_every = 50;
     s.log_every = 5;
     c.stages.push_back(s);
@@ -654,7 +683,9 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.sampling.eikonal_points, t.sampling.eikonal_points);
     EXPECT_EQ(s.sampling.match_grid_points, t.sampling.match_grid_points);
     EXPECT_EQ(s.sampling.match_top_k, t.sampling.match_top_k);
+    EXPECT_EQ(s.sampling.frames_per_batch, t.sampling.frames_per_batch);
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
+    EXPECT_EQ(s.schedule.bone_reinit_keep_motion, t.schedule.bone_reinit_keep_motion);
     EXPECT_EQ(s.schedule.bounds_refresh_every, t.schedule.bounds_refresh_every);
     EXPECT_EQ(s.schedule.anneal_end_fraction, t.schedule.anneal_end_fraction);
     EXPECT_EQ(s.pose_solve.at, t.pose_solve.at);
@@ -663,6 +694,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.pose_solve.search_ratio, t.pose_solve.search_ratio);
     EXPECT_EQ(s.pose_solve.search_rotations, t.pose_solve.search_rotations);
     EXPECT_EQ(s.pose_solve.search_keep, t.pose_solve.search_keep);
+    EXPECT_EQ(s.pose_solve.bones, t.pose_solve.bones);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
     EXPECT_EQ(s.schedule.root_free_from, t.schedule.root_free_from);
     EXPECT_EQ(s.checkpoint_every, t.checkpoint_every);

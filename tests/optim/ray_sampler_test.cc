@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <random>
+#include <set>
 
 #include "banmo/model/make_model.h"
 #include "tiny_solver_scene.h"
@@ -65,6 +67,40 @@ TEST(RaySampler, SameSeedSameRays) {
     EXPECT_EQ(ra[r].samples.depths, rb[r].samples.depths);
     EXPECT_EQ(ra[r].partner_frame, rb[r].partner_frame);
   }
+}
+
+// sampling.frames_per_batch: a batch's rays come from that many distinct
+// frames, evenly; different batches draw different frames.
+TEST(RaySampler, FramesPerBatchSpreadsTheRaysOverThatManyFrames) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  const int usable = static_cast<int>(sampler.UsableFrames().size());
+  ASSERT_GT(usable, 3);
+  SamplingConfig sampling;
+  sampling.frames_per_batch = 3;
+  std::mt19937 rng(4);
+  std::set<std::pair<int, int>> seen;
+  for (int batch = 0; batch < 10; ++batch) {
+    const std::vector<Ray> rays = sampler.Sample(31, 4, sampling, *model, kBounds, &rng);
+    ASSERT_EQ(rays.size(), 31u);
+    std::map<std::pair<int, int>, int> count;
+    for (const Ray& r : rays) ++count[{r.video, r.frame}];
+    ASSERT_EQ(count.size(), 3u);
+    for (const auto& [frame, n] : count) {
+      EXPECT_TRUE(n == 10 || n == 11) << n;  // 31 = 11 + 10 + 10
+      seen.insert(frame);
+    }
+  }
+  EXPECT_GT(seen.size(), 3u);  // not the same three frames every batch
+  // As many frames as the dataset has, or more: every ray draws its frame.
+  sampling.frames_per_batch = usable;
+  std::mt19937 a(8), b(8);
+  SamplingConfig any;
+  const std::vector<Ray> ra = sampler.Sample(40, 4, sampling, *model, kBounds, &a);
+  const std::vector<Ray> rb = sampler.Sample(40, 4, any, *model, kBounds, &b);
+  for (size_t r = 0; r < ra.size(); ++r) EXPECT_EQ(ra[r].uv, rb[r].uv);
 }
 
 // Active sampling draws near the pixels with the largest recorded errors.

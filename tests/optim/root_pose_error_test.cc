@@ -61,6 +61,40 @@ TEST(RootPoseErrors, OneFrameOffShowsInItsRowAndTheStatistics) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 10);
 }
 
+// The gauge freedom of a frame: all its bones turned by M and its root by
+// M^-1 change no residual. The root's error sees the turn; the body's
+// (root x mean bone rotation) does not.
+TEST(BodyPoseErrors, DoNotSeeATurnHandedFromTheRootToTheBones) {
+  const Dataset d = PosedDataset(8, Eigen::Vector3d::Zero());
+  ModelOptions options;
+  options.num_bones = 3;
+  PinholeCamera camera;
+  camera.width = camera.height = 16;
+  Model model(options, std::vector<int>{8}, std::vector<PinholeCamera>{camera});
+  for (int t = 0; t < 8; ++t) model.frame(0, t).root_init = *d.videos[0].frames[t].root_pose_gt;
+  // Frame 3: bones turned by 40 deg (and different articulations added on
+  // top, a turn per bone on the object side), the root by the inverse.
+  const Pose m = PoseFromAngleAxis(Eigen::Vector3d(0, 0, 40 * kDeg), Eigen::Vector3d(0.1, 0, 0));
+  Pose m_inv;
+  PoseInverse(m.data(), m_inv.data());
+  model.frame(0, 3).root_delta = m_inv;
+  for (int b = 0; b < 3; ++b) {
+    const Pose own =
+        PoseFromAngleAxis(Eigen::Vector3d(0.1 * (b - 1), 0, 0), Eigen::Vector3d::Zero());
+    PoseCompose(m.data(), own.data(), model.frame(0, 3).bones_t.data() + kPoseSize * b);
+  }
+  const std::optional<RootPoseErrors> root = ComputeRootPoseErrors(model, d);
+  const std::optional<RootPoseErrors> body = ComputeBodyPoseErrors(model, d);
+  ASSERT_TRUE(root.has_value() && body.has_value());
+  EXPECT_GT(root->frames[3].rotation_deg, 30.0);  // 40 deg less the alignment's share
+  // The own turns (-0.1, 0, 0.1 rad about x) average to the identity, so
+  // the body pose is the ground truth: rounding only.
+  EXPECT_LT(body->max_deg, 1e-6);
+  const std::string csv = RootPoseErrorsCsv(*root, &*body);
+  EXPECT_EQ(csv.rfind("video,frame,rotation_error_deg,body_rotation_error_deg\n0,0,", 0), 0u)
+      << csv;
+}
+
 TEST(RootPoseErrors, NoneWithoutGroundTruth) {
   Dataset d = PosedDataset(3, Eigen::Vector3d::Zero());
   for (Frame& f : d.videos[0].frames) f.root_pose_gt.reset();

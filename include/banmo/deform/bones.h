@@ -158,6 +158,30 @@ void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bone
                       const double* bones_t, const double* x, double* out, WarpJacobian* jacobian,
                       const double* delta_logits = nullptr);
 
+// The weighted mean rotation of a frame's bone transforms, as a unit
+// quaternion [w, x, y, z]: the quaternions turned into the hemisphere of the
+// heaviest bone's, summed with their weights, normalised (weights: B
+// non-negative numbers, not all zero; null = equal). Turning every bone by
+// one rotation M turns the mean by M exactly (the sum is linear in the
+// quaternions), so the root composed with it does not see the gauge
+// freedom of a frame (turn all bones by M, the root by M^-1).
+Eigen::Vector4d MeanBoneRotation(int num_bones, const double* bones_t,
+                                 const double* weights = nullptr);
+
+// Bone transforms of a frame for new rest bones that carry the motion the
+// old bones gave that frame (a bone re-initialisation that keeps the
+// articulation learnt so far). New bone k, centred at c_k, gets
+//   R'_k: the old skinning weights at c_k averaging the old rotations
+//         (quaternions turned into the hemisphere of the heaviest bone's,
+//         then normalised; exact when the old rotations agree),
+//   t'_k: c_k lands where the old forward warp takes it,
+//         J'_k c_k = ForwardWarp_old(c_k)  (Eq. 8, 10),
+// so a frame whose old bones all moved by one rigid motion M gives every
+// new bone M. Old delta logits are not used (the re-initialisation resets
+// them). With no old bones every new transform is the identity.
+void TransferBoneMotion(int old_num_bones, const double* old_bones, const double* old_bones_t,
+                        int new_num_bones, const double* new_bones, double* new_bones_t);
+
 // Initialises B rest bones: centres at the given points, identity
 // orientation, isotropic scale `scale` (log-scale log(scale)).
 void InitializeBones(const std::vector<Eigen::Vector3d>& centres, double scale, double* bones);

@@ -106,11 +106,18 @@ struct SamplingConfig {
   int eikonal_points = 256;                   // canonical points per batch for the eikonal term
   int match_grid_points = 4096;               // canonical grid of the soft-argmax
   int match_top_k = 32;                       // K of the truncated soft-argmax
+  // Frames a batch's (non-active) rays are drawn from: that many distinct
+  // frames at random, the rays spread evenly over them (0 = every ray from
+  // a frame of its own draw).
+  int frames_per_batch = 0;
 };
 
 struct ScheduleConfig {
   std::vector<double> bone_reinit_at;  // fractions of the stage at which bones are re-initialised
-  int bounds_refresh_every = 0;        // batches between canonical-bounds refreshes (0 = never)
+  // A re-initialisation hands each frame's motion to the new bones
+  // (TransferBoneMotion, deform/bones.h) instead of resetting it.
+  bool bone_reinit_keep_motion = false;
+  int bounds_refresh_every = 0;      // batches between canonical-bounds refreshes (0 = never)
   double anneal_end_fraction = 0.0;  // coarse-to-fine PE annealing reaches all bands here (0 = off)
   double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)
   // Fraction of the stage from which the root corrections are free; before
@@ -132,6 +139,9 @@ struct PoseSolveConfig {
   double search_ratio = 0.0;
   int search_rotations = 72;  // candidate rotations of the search (a uniform SO(3) set)
   int search_keep = 3;        // the candidates of lowest cost refined by LM
+  // Also solve each frame's bone transforms J_b^t (with its root correction,
+  // or alone when the stage holds the root constant).
+  bool bones = false;
 };
 
 // Parameter groups held constant (ceres SetParameterBlockConstant):

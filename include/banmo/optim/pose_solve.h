@@ -5,7 +5,8 @@
 // it samples many rays of ONE frame, holds every other block constant (the
 // fields, the bones, the other frames), and runs a few Levenberg-Marquardt
 // iterations on the frame's root correction dG^t (6 degrees of freedom,
-// G^t = G0^t dG^t) with the stage's composite terms and robust losses. The
+// G^t = G0^t dG^t) and, with `pose_solve.bones`, its bone transforms J_b^t
+// (6 B more) with the stage's composite terms and robust losses. The
 // batch skips the MLP-weight Jacobians (RayBatch::SetFieldJacobians), so an
 // iteration costs about one forward pass of the frame's rays.
 //
@@ -36,6 +37,10 @@ struct FramePoseContext {
   RayRobustLosses robust{};
   Eigen::Matrix3Xd match_grid;  // canonical points of the soft-argmax
   bool delta_skinning = false;  // as the stage's batch
+  // The blocks solved: the frame's root correction and/or (config.bones)
+  // its bone transforms; every other block is constant.
+  bool solve_root = true;
+  bool solve_bones = false;
 };
 
 // A rotation set of `count` rotations spread uniformly over SO(3)
@@ -46,8 +51,9 @@ std::vector<Eigen::Quaterniond> UniformRotations(int count);
 // Solves frame (video, frame)'s root correction on `rays` (all of that
 // frame) with LM, `config.iterations` iterations; with `search` the
 // multi-hypothesis search follows whatever the local solve reached (the
-// caller decides when, from the frames' costs). Changes only
-// model->frame(video, frame).root_delta.
+// caller decides when, from the frames' costs; only when the root is
+// solved). Changes only model->frame(video, frame).root_delta and (with
+// context.solve_bones) its bones_t.
 FramePoseSolve SolveFramePose(Model* model, int video, int frame, std::vector<Ray> rays,
                               const FramePoseContext& context, const PoseSolveConfig& config,
                               bool search);

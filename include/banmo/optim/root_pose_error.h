@@ -36,10 +36,21 @@ struct RootPoseErrors {
 // and the dataset must have the same videos and frames.
 std::optional<RootPoseErrors> ComputeRootPoseErrors(const Model& model, const Dataset& dataset);
 
+// The same for the body pose: each frame's root composed with the mean
+// rotation of its bone transforms, G^t * mean_b(J_b^t) (MeanBoneRotation,
+// deform/bones.h; equal weights). A frame's residuals do not change when
+// all its bones turn by M and its root by M^-1, so the root alone can
+// drift while the object stays registered; the body pose does not see that
+// freedom (the root's error is what a user of the root poses sees, the
+// body's is whether the object is registered). Equals the root's errors
+// without bones.
+std::optional<RootPoseErrors> ComputeBodyPoseErrors(const Model& model, const Dataset& dataset);
+
 // The errors of the dataset's own initial root poses (root_pose_init).
 std::optional<RootPoseErrors> InitialRootPoseErrors(const Dataset& dataset);
 
-// CSV: video,frame,rotation_error_deg, one line per frame.
-std::string RootPoseErrorsCsv(const RootPoseErrors& errors);
+// CSV: video,frame,rotation_error_deg, one line per frame; with `body`
+// (same frames) a fourth column body_rotation_error_deg.
+std::string RootPoseErrorsCsv(const RootPoseErrors& errors, const RootPoseErrors* body = nullptr);
 
 }  // namespace banmo

@@ -143,10 +143,11 @@ class Solver {
   // margin, within [-2, 2]^3); unchanged if the level set is empty.
   void RefreshBounds();
   // Rest bones re-initialised on the current surface (k-means of a coarse
-  // extraction), bone transforms reset to the identity, MLP_Delta's output
+  // extraction), bone transforms reset to the identity (keep_motion: set to
+  // carry each frame's old motion, TransferBoneMotion), MLP_Delta's output
   // layer reset to zero (its logits belonged to the old bones), their Adam
   // moments cleared.
-  void ReinitializeBones(SolverState* state);
+  void ReinitializeBones(bool keep_motion, SolverState* state);
 
   const Dataset& dataset_;
   const SolverConfig& config_;
