@@ -377,8 +377,7 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   context.robust = sp->ray_robust();
   context.delta_skinning = sp->batch().delta_skinning();
   context.match_grid = UniformPoints(bounds_, stage.sampling.match_grid_points, &c->state->rng);
-  context.solve_root = std::find(stage.constant.begin(), stage.constant.end(),
-                                 ParameterGroup::kRoot) == stage.constant.end();
+  context.solve_root = !sp->ConfiguredConstant(ParameterGroup::kRoot);
   context.solve_bones = stage.pose_solve.bones;
   PoseSolveReport report =
       SolveAllFramePoses(model_.get(), c->sampler, stage, bounds_, context, &c->state->rng);

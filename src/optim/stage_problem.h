@@ -67,6 +67,9 @@ class StageProblem {
   void Restore();
 
   ParameterGroup GroupOf(const double* block) const { return group_of_.at(block); }
+  // Whether the stage (or the run's extra groups) holds group g constant
+  // throughout; schedules' temporary holds do not count.
+  bool ConfiguredConstant(ParameterGroup g) const { return configured_constant_.Contains(g); }
   // The MLP weight blocks (AdamW's decay applies to these only).
   bool IsMlpWeights(const double* block) const;
 
