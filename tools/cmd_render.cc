@@ -122,6 +122,8 @@ void SetSampling(const Model& model, const RenderArgs& a, FrameRenderOptions* fr
     const TrainingSampling& trained = *model.training_sampling();
     frame->samples_per_ray = trained.samples_per_ray;
     frame->near_far_margin = trained.near_far_margin;
+    frame->clip_to_box = trained.clip_to_box;
+    frame->clip_margin = trained.clip_margin;
     trained_importance = trained.importance_depth;
   }
   if (a.samples > 0) frame->samples_per_ray = a.samples;

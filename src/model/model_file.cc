@@ -279,6 +279,8 @@ std::optional<TrainingSampling> LegacyTrainingSampling(const YAML::Node& config,
     const YAML::Node sampling = stage["sampling"];
     ReadOptional(source, path + "sampling.", sampling, "near_far_margin", &s.near_far_margin);
     ReadOptional(source, path + "sampling.", sampling, "importance_depth", &s.importance_depth);
+    ReadOptional(source, path + "sampling.", sampling, "clip_to_box", &s.clip_to_box);
+    ReadOptional(source, path + "sampling.", sampling, "clip_margin", &s.clip_margin);
   }
   return s;
 }
@@ -338,6 +340,10 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
     out << YAML::Key << "near_far_margin" << YAML::Value << FormatDouble(s.near_far_margin);
     out << YAML::Key << "importance_depth" << YAML::Value
         << (s.importance_depth ? "true" : "false");
+    if (s.clip_to_box) {  // absent in files of models trained without it
+      out << YAML::Key << "clip_to_box" << YAML::Value << "true";
+      out << YAML::Key << "clip_margin" << YAML::Value << FormatDouble(s.clip_margin);
+    }
     out << YAML::EndMap;
   }
   out << YAML::Key << "root_correction" << YAML::Value << kRootCorrectionObjectSide;
@@ -449,10 +455,14 @@ void ReadOptions(const std::string& yaml_path, const YAML::Node& root, ModelOpti
     ReadRequired(source, s, "samples_per_ray", &t.samples_per_ray);
     ReadRequired(source, s, "near_far_margin", &t.near_far_margin);
     ReadRequired(source, s, "importance_depth", &t.importance_depth);
-    if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0)) {
+    if (s["clip_to_box"].IsDefined()) {
+      ReadRequired(source, s, "clip_to_box", &t.clip_to_box);
+      ReadRequired(source, s, "clip_margin", &t.clip_margin);
+    }
+    if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0) || !(t.clip_margin >= 0)) {
       ThrowInputError(yaml_path,
-                      ": key 'training_sampling': expected samples_per_ray > 0 and "
-                      "near_far_margin >= 0",
+                      ": key 'training_sampling': expected samples_per_ray > 0, "
+                      "near_far_margin >= 0 and clip_margin >= 0",
                       kWhatToDo);
     }
     *sampling = t;

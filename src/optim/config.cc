@@ -92,6 +92,8 @@ void VisitFields(V& v, SamplingConfig& o) {
   v("active_fraction", o.active_fraction);
   v("importance_depth", o.importance_depth);
   v("near_far_margin", o.near_far_margin);
+  v("clip_to_box", o.clip_to_box);
+  v("clip_margin", o.clip_margin);
   v("flow_gaps", o.flow_gaps);
   v("eikonal_points", o.eikonal_points);
   v("match_grid_points", o.match_grid_points);
@@ -624,6 +626,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Fraction(g + ".foreground_fraction", s.sampling.foreground_fraction);
   c.Fraction(g + ".active_fraction", s.sampling.active_fraction);
   c.NonNegative(g + ".near_far_margin", s.sampling.near_far_margin);
+  c.NonNegative(g + ".clip_margin", s.sampling.clip_margin);
   if (s.losses[LossTerm::kFlow].weight > 0 && s.sampling.flow_gaps.empty()) {
     c.Fail(g + ".flow_gaps", "expected at least one gap when losses.flow.weight > 0");
   }

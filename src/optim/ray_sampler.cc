@@ -72,6 +72,10 @@ Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
   double near, far;
   NearFarPlanes(model.RootPose(v, t), canonical_bounds, sampling.near_far_margin, &near, &far);
   const Eigen::Vector4d& k = model.video(v).intrinsics;
+  if (sampling.clip_to_box) {
+    ClipDepthsToBox(model.RootPose(v, t), canonical_bounds, sampling.clip_margin, k, ray.uv, &near,
+                    &far);
+  }
   ray.samples =
       StratifiedSamples(samples_per_ray, near, far, RayDirectionLength(k, ray.uv), true, rng);
   return ray;

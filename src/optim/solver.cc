@@ -85,7 +85,8 @@ SolveResult Solver::Run(const SolveOptions& options) {
   if (!config_.stages.empty()) {
     const StageConfig& last = config_.stages.back();
     model_->set_training_sampling(TrainingSampling{
-        last.samples_per_ray, last.sampling.near_far_margin, last.sampling.importance_depth});
+        last.samples_per_ray, last.sampling.near_far_margin, last.sampling.importance_depth,
+        last.sampling.clip_to_box, last.sampling.clip_margin});
   }
   SigintGuard guard;
   if (config_.threads > 0) SetNumThreads(config_.threads);

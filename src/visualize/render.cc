@@ -39,6 +39,7 @@ void FrameRenderOptions::Check() const {
   if (!(near_far_margin >= 0.0)) {
     ThrowInputError("near_far_margin: expected >= 0, got ", near_far_margin);
   }
+  if (!(clip_margin >= 0.0)) ThrowInputError("clip_margin: expected >= 0, got ", clip_margin);
   if (!IsValidBox(canonical_bounds)) {
     ThrowInputError("canonical_bounds: expected a finite box with max > min on every axis");
   }
@@ -124,7 +125,12 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
       const cv::Vec3d c = observed.rgb.at<cv::Vec3d>(y, x);
       ray.rgb = Eigen::Vector3d(c[0], c[1], c[2]);
       ray.mask = 0.0;  // silhouette term only until the final pass
-      ray.samples = StratifiedSamples(options.samples_per_ray, near, far,
+      double ray_near = near, ray_far = far;
+      if (options.clip_to_box) {
+        ClipDepthsToBox(model.RootPose(observed.video, observed.frame), options.canonical_bounds,
+                        options.clip_margin, k, ray.uv, &ray_near, &ray_far);
+      }
+      ray.samples = StratifiedSamples(options.samples_per_ray, ray_near, ray_far,
                                       RayDirectionLength(k, ray.uv), false, nullptr);
     }
     ray_ptrs.resize(rays.size());

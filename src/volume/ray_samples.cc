@@ -24,6 +24,39 @@ void NearFarPlanes(const Pose& camera_from_root, const Eigen::AlignedBox3d& cano
   *far = std::max(zmax * (1.0 + margin), *near + 1e-3);
 }
 
+bool ClipDepthsToBox(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
+                     double margin, const Eigen::Vector4d& intrinsics, const Eigen::Vector2d& uv,
+                     double* near, double* far) {
+  CHECK(!canonical_bounds.isEmpty());
+  CHECK_GE(margin, 0.0);
+  const Eigen::Vector3d widen =
+      Eigen::Vector3d::Constant(margin * canonical_bounds.sizes().maxCoeff());
+  const Eigen::Vector3d lo = canonical_bounds.min() - widen, hi = canonical_bounds.max() + widen;
+  // The ray in root coordinates: o + z e, z the camera depth.
+  const Eigen::Vector3d d((uv[0] - intrinsics[2]) / intrinsics[0],
+                          (uv[1] - intrinsics[3]) / intrinsics[1], 1.0);
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  Eigen::Vector3d o, e;
+  PoseInverseTransformPoint(camera_from_root.data(), zero.data(), o.data());
+  PoseInverseRotateVector(camera_from_root.data(), d.data(), e.data());
+  double z0 = *near, z1 = *far;
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(e[a]) < 1e-12) {  // parallel to the slab: inside it or never
+      if (o[a] < lo[a] || o[a] > hi[a]) return false;
+      continue;
+    }
+    double ta = (lo[a] - o[a]) / e[a], tb = (hi[a] - o[a]) / e[a];
+    if (ta > tb) std::swap(ta, tb);
+    z0 = std::max(z0, ta);
+    z1 = std::min(z1, tb);
+  }
+  // A sliver shorter than a millionth of the planes' range is a miss too.
+  if (!(z1 - z0 > 1e-6 * (*far - *near))) return false;
+  *near = z0;
+  *far = z1;
+  return true;
+}
+
 void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng) {
   const int n = static_cast<int>(samples->depths.size());
   CHECK_EQ(static_cast<int>(tau.size()), n);

@@ -184,7 +184,16 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   EXPECT_EQ(back->training_sampling()->samples_per_ray, 24);
   EXPECT_EQ(back->training_sampling()->near_far_margin, 0.15);
   EXPECT_TRUE(back->training_sampling()->importance_depth);
+  EXPECT_FALSE(back->training_sampling()->clip_to_box);  // not written when off
+  EXPECT_EQ(ReadText(dir / "model.yaml").find("clip_to_box"), std::string::npos);
   ExpectSameModel(*model, *back);
+  // Ray clipping is recorded when on.
+  model->set_training_sampling(TrainingSampling{24, 0.15, true, true, 0.125});
+  WriteModelFiles(dir.string(), *model);
+  const std::unique_ptr<Model> clipped = LoadModel(dir.string());
+  ASSERT_TRUE(clipped->training_sampling().has_value());
+  EXPECT_TRUE(clipped->training_sampling()->clip_to_box);
+  EXPECT_EQ(clipped->training_sampling()->clip_margin, 0.125);
 
   // A box without its max, or with max <= min, is an error naming the key.
   const std::string yaml = ReadText(dir / "model.yaml");

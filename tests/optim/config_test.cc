@@ -319,6 +319,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].sampling.match_top_k", [&](SolverConfig* c) { S(c).sampling.match_top_k = 0; }},
       {"stages[1].sampling.frames_per_batch",
        [&](SolverConfig* c) { S(c).sampling.frames_per_batch = -1; }},
+      {"stages[1].sampling.clip_margin",
+       [&](SolverConfig* c) { S(c).sampling.clip_margin = -0.1; }},
       {"stages[1].sampling.match_top_k",
        [&](SolverConfig* c) { S(c).sampling.match_top_k = S(c).sampling.match_grid_points + 1; }},
       {"stages[1].schedule.bone_reinit_at[0]",
@@ -568,6 +570,8 @@ SolverConfig EveryFieldChanged() {
     s.sampling.match_grid_points = 1000;
     s.sampling.match_top_k = 10;
     s.sampling.frames_per_batch = 6;
+    s.sampling.clip_to_box = true;
+    s.sampling.clip_margin = 0.05;
     s.schedule.bone_reinit_at = {0.1, 0.9};
     s.schedule.bone_reinit_keep_motion = true;
     s.schedule.bounds_refresh_every = 25;
@@ -684,6 +688,8 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.sampling.match_grid_points, t.sampling.match_grid_points);
     EXPECT_EQ(s.sampling.match_top_k, t.sampling.match_top_k);
     EXPECT_EQ(s.sampling.frames_per_batch, t.sampling.frames_per_batch);
+    EXPECT_EQ(s.sampling.clip_to_box, t.sampling.clip_to_box);
+    EXPECT_EQ(s.sampling.clip_margin, t.sampling.clip_margin);
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
     EXPECT_EQ(s.schedule.bone_reinit_keep_motion, t.schedule.bone_reinit_keep_motion);
     EXPECT_EQ(s.schedule.bounds_refresh_every, t.schedule.bounds_refresh_every);

@@ -124,5 +124,97 @@ TEST(ImportanceResample, SingleSampleIsLeftAlone) {
   EXPECT_EQ(s.deltas, before.deltas);
 }
 
+// Intrinsics of a 100 x 100 camera with focal length 100.
+const Eigen::Vector4d kIntrinsics(100, 100, 50, 50);
+
+TEST(ClipDepthsToBox, CentralRayKeepsTheBoxDepthsInsideThePlanes) {
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1));
+  const Pose pose = MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 5));
+  double near = 0, far = 0;
+  NearFarPlanes(pose, box, 0.2, &near, &far);  // 3.2, 7.2
+  double n = near, f = far;
+  ASSERT_TRUE(ClipDepthsToBox(pose, box, 0.0, kIntrinsics, Eigen::Vector2d(50, 50), &n, &f));
+  EXPECT_NEAR(n, 4, 1e-12);
+  EXPECT_NEAR(f, 6, 1e-12);
+  // Widened by half the side (1 unit) the box reaches past the near plane,
+  // which stays the limit.
+  n = near, f = far;
+  ASSERT_TRUE(ClipDepthsToBox(pose, box, 0.5, kIntrinsics, Eigen::Vector2d(50, 50), &n, &f));
+  EXPECT_NEAR(n, 3.2, 1e-12);
+  EXPECT_NEAR(f, 7, 1e-12);
+  // An oblique ray through the box's edge region: pixel x = 70 is the
+  // direction (0.2, 0, 1), which leaves the slab x <= 1 at depth 5.
+  n = near, f = far;
+  ASSERT_TRUE(ClipDepthsToBox(pose, box, 0.0, kIntrinsics, Eigen::Vector2d(70, 50), &n, &f));
+  EXPECT_NEAR(n, 4, 1e-12);
+  EXPECT_NEAR(f, 5, 1e-12);
+}
+
+TEST(ClipDepthsToBox, MissingRayKeepsThePlanes) {
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1));
+  const Pose pose = MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 5));
+  double near = 3.2, far = 7.2;
+  // Direction (0.45, 0, 1): at depth 4..6, x = 1.8..2.7, outside the box.
+  EXPECT_FALSE(ClipDepthsToBox(pose, box, 0.0, kIntrinsics, Eigen::Vector2d(95, 50), &near, &far));
+  EXPECT_EQ(near, 3.2);
+  EXPECT_EQ(far, 7.2);
+  // A ray parallel to a slab and outside it: the camera above the box
+  // looking along z.
+  const Pose above = MakePose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, -3, 5));
+  EXPECT_FALSE(ClipDepthsToBox(above, box, 0.0, kIntrinsics, Eigen::Vector2d(50, 50), &near, &far));
+  // Widened enough (margin 1: +-3), the same ray meets it.
+  EXPECT_TRUE(ClipDepthsToBox(above, box, 1.0, kIntrinsics, Eigen::Vector2d(50, 50), &near, &far));
+  EXPECT_NEAR(near, 3.2, 1e-12);
+  EXPECT_NEAR(far, 7.2, 1e-12);
+}
+
+TEST(ClipDepthsToBox, FollowsTheRootPoseAgainstBruteForce) {
+  // Random poses and pixels: every point of the clipped interval lies in the
+  // widened box, and points of the planes' range outside it do not (checked
+  // on a fine grid of depths; tolerance 1e-9 for the interval's ends).
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-1.5, -0.4, -0.7), Eigen::Vector3d(1.2, 0.6, 0.3));
+  const double margin = 0.1;
+  const Eigen::Vector3d widen = Eigen::Vector3d::Constant(margin * 2.7);
+  const Eigen::AlignedBox3d wide(box.min() - widen, box.max() + widen);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  int hits = 0, misses = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::Quaterniond q = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+    const Pose pose = MakePose(q, Eigen::Vector3d(0.3 * u(rng), 0.3 * u(rng), 4 + u(rng)));
+    const Eigen::Vector2d uv(50 + 50 * u(rng), 50 + 50 * u(rng));
+    double near = 0, far = 0;
+    NearFarPlanes(pose, box, 0.2, &near, &far);
+    double n = near, f = far;
+    const bool hit = ClipDepthsToBox(pose, box, margin, kIntrinsics, uv, &n, &f);
+    hits += hit;
+    misses += !hit;
+    const Eigen::Vector3d d((uv[0] - 50) / 100, (uv[1] - 50) / 100, 1.0);
+    for (int i = 0; i <= 400; ++i) {
+      const double z = near + (far - near) * i / 400.0;
+      Eigen::Vector3d x_root;
+      const Eigen::Vector3d x_cam = z * d;
+      PoseInverseTransformPoint(pose.data(), x_cam.data(), x_root.data());
+      const bool inside = wide.contains(x_root);
+      const bool in_interval = hit && z >= n - 1e-9 && z <= f + 1e-9;
+      if (in_interval) {
+        EXPECT_TRUE(inside) << "trial " << trial << " z " << z;
+      }
+      if (!hit || z < n - 1e-6 || z > f + 1e-6) {
+        EXPECT_FALSE(inside) << "trial " << trial << " z " << z;
+      }
+    }
+    if (hit) {
+      EXPECT_GE(n, near);
+      EXPECT_LE(f, far);
+    } else {
+      EXPECT_EQ(n, near);
+      EXPECT_EQ(f, far);
+    }
+  }
+  EXPECT_GT(hits, 20);
+  EXPECT_GT(misses, 20);
+}
+
 }  // namespace
 }  // namespace banmo

@@ -66,6 +66,8 @@ struct TrainingSampling {
   int samples_per_ray = 32;       // depth samples per ray (> 0)
   double near_far_margin = 0.2;   // near/far planes widened by this fraction (>= 0)
   bool importance_depth = false;  // second pass of samples around the surface
+  bool clip_to_box = false;       // rays clipped to the widened canonical bounds
+  double clip_margin = 0.1;       // their widening, fraction of the largest side (>= 0)
 };
 
 struct FrameParameters {

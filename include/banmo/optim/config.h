@@ -102,6 +102,11 @@ struct SamplingConfig {
   double active_fraction = 0.0;      // fraction drawn from the error cache (active sampling)
   bool importance_depth = false;     // second pass of samples around the surface
   double near_far_margin = 0.2;      // +-20 % around the canonical bounds' depth range
+  // Each ray's samples span only its part inside the canonical bounds
+  // widened by clip_margin times their largest side (ClipDepthsToBox,
+  // volume/ray_samples.h), not the frame's whole near-far range.
+  bool clip_to_box = false;
+  double clip_margin = 0.1;
   std::vector<int> flow_gaps = {1, 2, 4, 8};  // frame gaps used by the flow term
   int eikonal_points = 256;                   // canonical points per batch for the eikonal term
   int match_grid_points = 4096;               // canonical grid of the soft-argmax

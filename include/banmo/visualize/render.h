@@ -36,6 +36,10 @@ struct FrameRenderOptions {
   // Near/far planes: the canonical bounds' depth range through the root
   // pose, widened by this fraction (>= 0), as SamplingConfig::near_far_margin.
   double near_far_margin = 0.2;
+  // Each ray clipped to the canonical box widened by clip_margin times its
+  // largest side, as SamplingConfig::clip_to_box.
+  bool clip_to_box = false;
+  double clip_margin = 0.1;
   // Canonical box whose depth range bounds the samples (non-empty);
   // CanonicalBoundsFromSurface (extract/extract.h) gives the solver's kind
   // of box.

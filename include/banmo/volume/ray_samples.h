@@ -21,6 +21,19 @@ namespace banmo {
 void NearFarPlanes(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
                    double margin, double* near, double* far);
 
+// Clips a ray's depth interval [*near, *far] (camera z, from NearFarPlanes)
+// to the part of the ray inside the canonical box `canonical_bounds` widened
+// by `margin` times its largest side on every side (the widening leaves room
+// for articulated parts that leave the canonical box). The ray is the one
+// through pixel position uv of a camera with intrinsics [fx, fy, cx, cy]
+// under camera_from_root (canonical coordinates are root coordinates).
+// Returns false, and leaves the interval as it is, when the ray misses the
+// widened box or meets it only outside [*near, *far]: such a ray sees no
+// object and keeps its plane-to-plane samples.
+bool ClipDepthsToBox(const Pose& camera_from_root, const Eigen::AlignedBox3d& canonical_bounds,
+                     double margin, const Eigen::Vector4d& intrinsics, const Eigen::Vector2d& uv,
+                     double* near, double* far);
+
 // Length of the direction (z = 1, geometry/camera.h) of the ray through pixel
 // position uv: |((u - cx) / fx, (v - cy) / fy, 1)|; RaySamples::dir_norm.
 // intrinsics = [fx, fy, cx, cy].
