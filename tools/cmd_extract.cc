@@ -48,6 +48,10 @@ int RunExtract(int argc, char** argv) {
                  "'model' (the box training sampled, stored with the model; [-1, 1]^3 for a "
                  "model without one) or xmin,ymin,zmin,xmax,ymax,zmax")
       ->capture_default_str();
+  app.add_option("--level", options.grid.iso_level,
+                 "SDF level extracted, in model units (0 = the zero level set the solver "
+                 "trains; a negative level is inside it)")
+      ->capture_default_str();
   app.add_option("--coarse-stride", options.grid.coarse_stride,
                  "Coarse-to-fine sampling stride (1 = dense; exact for SDF-like fields)")
       ->capture_default_str();

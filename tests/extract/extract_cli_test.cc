@@ -121,6 +121,33 @@ TEST_F(ExtractCli, SamplesTheModelsTrainedBoxByDefault) {
   EXPECT_LT(read.vertices.row(0).minCoeff(), -0.3 + 0.075);
 }
 
+// --level extracts another level set of the SDF, as the library does; a
+// level inside the surface gives a smaller mesh.
+TEST_F(ExtractCli, ExtractsTheLevelAskedFor) {
+  const fs::path out = root_ / "out_level";
+  const RunResult r = RunExtract("--model " + (root_ / "model").string() + " --out " +
+                                 out.string() + " --resolution 32 --frames none --level=-0.1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ExtractOptions options;
+  options.grid.resolution = 32;
+  options.grid.iso_level = -0.1;
+  const TriangleMesh expected = ExtractCanonicalMesh(*model_, options);
+  const TriangleMesh read = ReadMesh((out / "canonical.ply").string());
+  ASSERT_EQ(read.NumVertices(), expected.NumVertices());
+  EXPECT_LT((read.vertices - expected.vertices).cwiseAbs().maxCoeff(), 1e-12);
+  options.grid.iso_level = 0.0;
+  const TriangleMesh zero = ExtractCanonicalMesh(*model_, options);
+  const auto extent = [](const TriangleMesh& m) {
+    return (m.vertices.rowwise().maxCoeff() - m.vertices.rowwise().minCoeff()).eval();
+  };
+  EXPECT_LT(extent(read)[0], extent(zero)[0] - 0.1);  // 0.1 inside on both sides
+  const RunResult bad = RunExtract("--model " + (root_ / "model").string() + " --out " +
+                                   (root_ / "out_bad_level").string() + " --level nan");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("iso_level"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(root_ / "out_bad_level"));
+}
+
 TEST_F(ExtractCli, BadInputsExitWithTwoAndWriteNothing) {
   const std::string model = " --model " + (root_ / "model").string();
   const fs::path out = root_ / "bad_out";
