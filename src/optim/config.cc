@@ -136,6 +136,7 @@ void VisitFields(V& v, StageConfig& o) {
   v("sampling", o.sampling);
   v("schedule", o.schedule);
   v("pose_solve", o.pose_solve);
+  v("bone_steps_about_centres", o.bone_steps_about_centres);
   v("checkpoint_every", o.checkpoint_every);
   v("log_every", o.log_every);
 }

@@ -9,6 +9,7 @@
 #include <memory>
 #include <numeric>
 
+#include "banmo/deform/bones.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/util/logging.h"
@@ -62,7 +63,12 @@ class FramePoseProblem {
     if (empty()) return;  // no residuals or nothing free: nothing to solve
     if (root_solved_) problem_->SetManifold(root_, MakePoseManifold().release());
     if (bones_solved_) {
-      problem_->SetManifold(bones_t_, MakeStackedPoseManifold(model->num_bones()).release());
+      problem_->SetManifold(bones_t_,
+                            (context.bone_steps_about_centres
+                                 ? MakeStackedPivotPoseManifold(model->num_bones(), model->bones(),
+                                                                kBoneSize, kBoneCenter)
+                                 : MakeStackedPoseManifold(model->num_bones()))
+                                .release());
     }
     std::vector<double*> blocks;
     problem_->GetParameterBlocks(&blocks);

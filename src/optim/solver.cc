@@ -380,6 +380,7 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   context.match_grid = UniformPoints(bounds_, stage.sampling.match_grid_points, &c->state->rng);
   context.solve_root = !sp->ConfiguredConstant(ParameterGroup::kRoot);
   context.solve_bones = stage.pose_solve.bones;
+  context.bone_steps_about_centres = stage.bone_steps_about_centres;
   PoseSolveReport report =
       SolveAllFramePoses(model_.get(), c->sampler, stage, bounds_, context, &c->state->rng);
   report.stage = run.index;

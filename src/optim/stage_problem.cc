@@ -1,5 +1,6 @@
 #include "stage_problem.h"
 
+#include "banmo/deform/bones.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/losses/regularizers.h"
 #include "banmo/util/logging.h"
@@ -86,7 +87,12 @@ void StageProblem::AddModelBlocks() {
     for (size_t t = 0; t < m.video(v).frames.size(); ++t) {
       FrameParameters& f = m.frame(v, t);
       AddBlock(G::kRoot, f.root_delta.data(), kPoseSize, MakePoseManifold());
-      if (B > 0) AddBlock(G::kBonesT, f.bones_t.data(), kPoseSize * B, MakeStackedPoseManifold(B));
+      if (B > 0) {
+        AddBlock(G::kBonesT, f.bones_t.data(), kPoseSize * B,
+                 stage_.bone_steps_about_centres
+                     ? MakeStackedPivotPoseManifold(B, m.bones(), kBoneSize, kBoneCenter)
+                     : MakeStackedPoseManifold(B));
+      }
       if (m.has_delta_skinning()) {
         AddBlock(G::kPoseCode, f.pose_code.data(), m.pose_code_size(), nullptr);
       }

@@ -585,6 +585,7 @@ SolverConfig EveryFieldChanged() {
     s.pose_solve.search_rotations = 24;
     s.pose_solve.search_keep = 2;
     s.pose_solve.bones = true;
+    s.bone_steps_about_centres = true;
     s.checkpoint_every = 50;
     s.log_every = 5;
     c.stages.push_back(s);
@@ -701,6 +702,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.pose_solve.search_rotations, t.pose_solve.search_rotations);
     EXPECT_EQ(s.pose_solve.search_keep, t.pose_solve.search_keep);
     EXPECT_EQ(s.pose_solve.bones, t.pose_solve.bones);
+    EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
     EXPECT_EQ(s.schedule.root_free_from, t.schedule.root_free_from);
     EXPECT_EQ(s.checkpoint_every, t.checkpoint_every);

@@ -173,7 +173,11 @@ TEST(PoseSolve, FrameHundredFiftyDegreesOffRecoversThroughTheSearch) {
 // pose_solve.bones with the root held: one bone of the frame turned by
 // 20 deg about its own centre is solved back by LM on the frame's bone
 // transforms; the root and the other frames stay where they are.
-TEST(PoseSolve, BoneTurnedOffRecoversWithLmOnTheBoneTransforms) {
+// Both tangents of the bone transforms (about the origin, and with
+// bone_steps_about_centres about each bone's centre) recover it.
+class BoneTurnedOff : public ::testing::TestWithParam<bool> {};
+
+TEST_P(BoneTurnedOff, RecoversWithLmOnTheBoneTransforms) {
   auto model = KnownModel(2);
   // Two bones on either side of the ball's centre, large enough that each
   // owns its half of the surface.
@@ -195,13 +199,15 @@ TEST(PoseSolve, BoneTurnedOffRecoversWithLmOnTheBoneTransforms) {
   FramePoseContext context = Context();
   context.solve_root = false;
   context.solve_bones = true;
+  context.bone_steps_about_centres = GetParam();
   PoseSolveConfig config;
   config.iterations = 20;
   const FramePoseSolve s = SolveFramePose(model.get(), 0, t, rays, context, config, true);
   const Pose identity = PoseIdentity();
   const double bone1_deg = RotationAngleBetween(bone1, identity.data()) / kDeg;
-  std::printf("bone 20 deg off: %.3g deg after %d LM iterations, cost %.3g -> %.3g\n", bone1_deg,
-              s.iterations, s.cost_before, s.cost_after);
+  std::printf(
+      "bone 20 deg off (steps about %s): %.3g deg after %d LM iterations, cost %.3g -> %.3g\n",
+      GetParam() ? "centres" : "origin", bone1_deg, s.iterations, s.cost_before, s.cost_after);
   EXPECT_LT(bone1_deg, 1.0);  // measured 3e-9 deg: the data fit it exactly
   EXPECT_LT(s.cost_after, 0.05 * s.cost_before);
   EXPECT_FALSE(s.searched);  // the search turns the root, which is held
@@ -212,6 +218,8 @@ TEST(PoseSolve, BoneTurnedOffRecoversWithLmOnTheBoneTransforms) {
     }
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(PoseSolve, BoneTurnedOff, ::testing::Bool());
 
 }  // namespace
 }  // namespace banmo

@@ -16,6 +16,22 @@ std::unique_ptr<ceres::Manifold> MakePoseManifold();
 // frame): ambient 7 count, tangent 6 count, each pose as MakePoseManifold.
 std::unique_ptr<ceres::Manifold> MakeStackedPoseManifold(int count);
 
+// `count` poses stored one after another, pose i turning about its own
+// pivot point: pivots[pivot_stride * i + pivot_offset + 0..2], read at each
+// call (the pivots may be another parameter block, e.g. the rest bone
+// centres, which move during a solve). Ambient 7 count, tangent 6 count.
+// The rotation part of a step is that of ceres::QuaternionManifold
+// (q' = [cos|w|, sin|w| w / |w|] * q); the translation part moves the posed
+// pivot R c + t by v and nothing else:
+//   t' = t + v + R c - R' c,
+// so turning a pose about its pivot is one tangent coordinate, as it is
+// about the origin for MakeStackedPoseManifold. For the bone transforms J_b^t
+// (deform/bones.h), which act about the canonical origin: a limb turns about
+// its own bone instead of swinging round the origin with a translation that
+// has to follow. Jacobians by ceres::AutoDiffManifold.
+std::unique_ptr<ceres::Manifold> MakeStackedPivotPoseManifold(int count, const double* pivots,
+                                                              int pivot_stride, int pivot_offset);
+
 // `count` blocks of `stride` doubles, each with a unit quaternion (Ceres
 // order w, x, y, z) at `quaternion_offset` and Euclidean values elsewhere
 // (e.g. the rest bones [centre 3, quaternion 4, log-scales 3]): tangent size

@@ -164,6 +164,10 @@ struct StageConfig {
   SamplingConfig sampling;
   ScheduleConfig schedule;
   PoseSolveConfig pose_solve;
+  // Steps of the bone transforms J_b^t turn each about its bone's centre
+  // (MakeStackedPivotPoseManifold, geometry/pose_manifold.h) instead of
+  // about the canonical origin; Adam and the pose solves alike.
+  bool bone_steps_about_centres = false;
   int checkpoint_every = 0;  // batches between checkpoints (0 = end of stage only)
   int log_every = 10;        // batches between progress lines
 };

@@ -41,6 +41,9 @@ struct FramePoseContext {
   // its bone transforms; every other block is constant.
   bool solve_root = true;
   bool solve_bones = false;
+  // The bone transforms' tangent turns each about its bone's centre
+  // (StageConfig::bone_steps_about_centres).
+  bool bone_steps_about_centres = false;
 };
 
 // A rotation set of `count` rotations spread uniformly over SO(3)
