@@ -20,19 +20,22 @@ Eigen::VectorXd RandomPoses(int count, int stride, int q_offset, uint32_t seed) 
 }
 
 // Ceres' own manifold invariants (Plus/Minus consistency, Jacobians against
-// numeric differentiation) for the stacked manifolds.
-TEST(StackedPoseManifold, SatisfiesCeresManifoldInvariants) {
+// numeric differentiation) of a manifold of 3 stacked poses, at random
+// poses and steps.
+void ExpectThreePoseInvariants(const ceres::Manifold& manifold) {
   using namespace ceres;  // NOLINT: the invariant macros name Ceres' helpers unqualified
-  const auto m = MakeStackedPoseManifold(3);
-  EXPECT_EQ(m->AmbientSize(), 21);
-  EXPECT_EQ(m->TangentSize(), 18);
+  EXPECT_EQ(manifold.AmbientSize(), 21);
+  EXPECT_EQ(manifold.TangentSize(), 18);
   for (uint32_t seed = 0; seed < 5; ++seed) {
     const Eigen::VectorXd x = RandomPoses(3, 7, 0, seed);
     const Eigen::VectorXd delta = 0.1 * RandomPoses(3, 6, 0, seed + 10).head(18);
     const Eigen::VectorXd y = RandomPoses(3, 7, 0, seed + 20);
-    const ceres::Manifold& manifold = *m;
     EXPECT_THAT_MANIFOLD_INVARIANTS_HOLD(manifold, x, delta, y, 1e-9);
   }
+}
+
+TEST(StackedPoseManifold, SatisfiesCeresManifoldInvariants) {
+  ExpectThreePoseInvariants(*MakeStackedPoseManifold(3));
 }
 
 TEST(StackedQuaternionBlockManifold, SatisfiesCeresManifoldInvariants) {
@@ -60,19 +63,9 @@ TEST(PoseManifold, PlusMovesRotationAndTranslation) {
 }
 
 TEST(StackedPivotPoseManifold, SatisfiesCeresManifoldInvariants) {
-  using namespace ceres;  // NOLINT
   // Pivots in a block of stride 10 at offset 0, as the rest bone centres.
   const Eigen::VectorXd pivots = RandomPoses(3, 10, 3, 99);
-  const auto m = MakeStackedPivotPoseManifold(3, pivots.data(), 10, 0);
-  EXPECT_EQ(m->AmbientSize(), 21);
-  EXPECT_EQ(m->TangentSize(), 18);
-  for (uint32_t seed = 0; seed < 5; ++seed) {
-    const Eigen::VectorXd x = RandomPoses(3, 7, 0, seed);
-    const Eigen::VectorXd delta = 0.1 * RandomPoses(3, 6, 0, seed + 10).head(18);
-    const Eigen::VectorXd y = RandomPoses(3, 7, 0, seed + 20);
-    const ceres::Manifold& manifold = *m;
-    EXPECT_THAT_MANIFOLD_INVARIANTS_HOLD(manifold, x, delta, y, 1e-9);
-  }
+  ExpectThreePoseInvariants(*MakeStackedPivotPoseManifold(3, pivots.data(), 10, 0));
 }
 
 // A rotation step turns the pose about its posed pivot R c + t, which stays
