@@ -52,6 +52,37 @@ TEST(RaySampler, RaysCarryTheirDataAndSortedSamples) {
   EXPECT_GE(object, 100);
 }
 
+// clip_to_box: every ray's samples lie in its part inside the widened box
+// (ClipDepthsToBox), which for object rays is shorter than the frame's
+// near-far range.
+TEST(RaySampler, ClipToBoxKeepsTheSamplesInTheWidenedBox) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  sampling.clip_to_box = true;
+  sampling.clip_margin = 0.05;
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.8, -0.5, -0.4), Eigen::Vector3d(0.8, 0.5, 0.4));
+  std::mt19937 rng(3);
+  const std::vector<Ray> rays = sampler.Sample(100, 12, sampling, *model, box, &rng);
+  int clipped = 0;
+  for (const Ray& ray : rays) {
+    double near = 0, far = 0;
+    const Pose pose = model->RootPose(ray.video, ray.frame);
+    NearFarPlanes(pose, box, sampling.near_far_margin, &near, &far);
+    const double plane_range = far - near;
+    const bool hit = ClipDepthsToBox(pose, box, sampling.clip_margin,
+                                     model->video(ray.video).intrinsics, ray.uv, &near, &far);
+    clipped += hit && far - near < plane_range;
+    const double last_end =
+        ray.samples.depths.back() + ray.samples.deltas.back() / ray.samples.dir_norm;
+    EXPECT_GE(ray.samples.depths.front(), near - 1e-12);
+    EXPECT_LE(last_end, far + 1e-9);
+  }
+  EXPECT_GE(clipped, 50);  // at least the object rays
+}
+
 TEST(RaySampler, SameSeedSameRays) {
   const Dataset& data = testing::TinyQuadrupedDataset();
   const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
