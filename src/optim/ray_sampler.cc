@@ -70,10 +70,11 @@ Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
     ray.has_feature = true;
   }
   double near, far;
-  NearFarPlanes(model.RootPose(v, t), canonical_bounds, sampling.near_far_margin, &near, &far);
+  const Pose camera_from_root = model.RootPose(v, t);
+  NearFarPlanes(camera_from_root, canonical_bounds, sampling.near_far_margin, &near, &far);
   const Eigen::Vector4d& k = model.video(v).intrinsics;
   if (sampling.clip_to_box) {
-    ClipDepthsToBox(model.RootPose(v, t), canonical_bounds, sampling.clip_margin, k, ray.uv, &near,
+    ClipDepthsToBox(camera_from_root, canonical_bounds, sampling.clip_margin, k, ray.uv, &near,
                     &far);
   }
   ray.samples =

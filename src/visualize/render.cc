@@ -104,8 +104,8 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
   out.flow = cv::Mat::zeros(height, width, CV_64FC2);
 
   double near, far;
-  NearFarPlanes(model.RootPose(observed.video, observed.frame), options.canonical_bounds,
-                options.near_far_margin, &near, &far);
+  const Pose camera_from_root = model.RootPose(observed.video, observed.frame);
+  NearFarPlanes(camera_from_root, options.canonical_bounds, options.near_far_margin, &near, &far);
   const Eigen::Vector4d& k = model.video(observed.video).intrinsics;
 
   const int num_pixels = width * height;
@@ -127,8 +127,8 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
       ray.mask = 0.0;  // silhouette term only until the final pass
       double ray_near = near, ray_far = far;
       if (options.clip_to_box) {
-        ClipDepthsToBox(model.RootPose(observed.video, observed.frame), options.canonical_bounds,
-                        options.clip_margin, k, ray.uv, &ray_near, &ray_far);
+        ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k, ray.uv,
+                        &ray_near, &ray_far);
       }
       ray.samples = StratifiedSamples(options.samples_per_ray, ray_near, ray_far,
                                       RayDirectionLength(k, ray.uv), false, nullptr);

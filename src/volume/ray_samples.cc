@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "banmo/geometry/camera.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -33,8 +34,8 @@ bool ClipDepthsToBox(const Pose& camera_from_root, const Eigen::AlignedBox3d& ca
       Eigen::Vector3d::Constant(margin * canonical_bounds.sizes().maxCoeff());
   const Eigen::Vector3d lo = canonical_bounds.min() - widen, hi = canonical_bounds.max() + widen;
   // The ray in root coordinates: o + z e, z the camera depth.
-  const Eigen::Vector3d d((uv[0] - intrinsics[2]) / intrinsics[0],
-                          (uv[1] - intrinsics[3]) / intrinsics[1], 1.0);
+  Eigen::Vector3d d;
+  PixelToRayDirection(intrinsics.data(), uv.data(), d.data());
   const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
   Eigen::Vector3d o, e;
   PoseInverseTransformPoint(camera_from_root.data(), zero.data(), o.data());
