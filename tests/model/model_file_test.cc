@@ -194,6 +194,14 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   ASSERT_TRUE(clipped->training_sampling().has_value());
   EXPECT_TRUE(clipped->training_sampling()->clip_to_box);
   EXPECT_EQ(clipped->training_sampling()->clip_margin, 0.125);
+  // A negative clip margin in the file is an error naming the key.
+  std::string yaml_clip = ReadText(dir / "model.yaml");
+  const size_t margin_at = yaml_clip.find("clip_margin: ");
+  ASSERT_NE(margin_at, std::string::npos) << yaml_clip;
+  yaml_clip.insert(margin_at + std::string("clip_margin: ").size(), "-");
+  std::ofstream(dir / "model.yaml") << yaml_clip;
+  EXPECT_NE(LoadError(dir).find("clip_margin >= 0"), std::string::npos) << LoadError(dir);
+  WriteModelFiles(dir.string(), *model);
 
   // A box without its max, or with max <= min, is an error naming the key.
   const std::string yaml = ReadText(dir / "model.yaml");

@@ -412,6 +412,14 @@ TEST(FrameRenderOptions, CheckNamesTheField) {
   o = FrameRenderOptions();
   o.flow_gap = 0;
   EXPECT_THROW(o.Check(), InputError);
+  o = FrameRenderOptions();
+  o.clip_margin = -0.1;
+  try {
+    o.Check();
+    ADD_FAILURE() << "a negative clip_margin passed";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("clip_margin"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
