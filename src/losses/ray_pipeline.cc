@@ -277,7 +277,8 @@ void RayPipeline::EvaluateFields() {
 }
 
 RayPipeline::RayWork::RayWork(int r, const Ray& ray, const RayParameters& p, RayScratch& s,
-                              RayEvaluation& ev, const RayLossWeights& weights)
+                              RayEvaluation& ev, const RayLossWeights& weights,
+                              DensityModel density)
     : r(r),
       ray(ray),
       p(p),
@@ -286,12 +287,12 @@ RayPipeline::RayWork::RayWork(int r, const Ray& ray, const RayParameters& p, Ray
       n(s.num_samples),
       bones(p.block[kBlockBones]),
       intr(p.block[kBlockIntrinsics]),
-      composite(ray, weights),
+      composite(ray, weights, density),
       R(composite.num_residuals()),
       cycle3d(ray.HasTerm(LossTerm::kCycle3d, weights)) {}
 
 void RayPipeline::EvaluateRay(int r) {
-  RayWork w(r, *rays[r], params[r], scratch[r], (*out)[r], weights);
+  RayWork w(r, *rays[r], params[r], scratch[r], (*out)[r], weights, model.options().density);
   // Rows of the reverse chain: R, or one cotangent row in gradient mode.
   w.Rc = gradient ? std::min(w.R, 1) : w.R;
   w.s.composite_rows = w.Rc;
@@ -456,7 +457,7 @@ bool RayPipeline::RenderingWeights(RayWork& w) {
     for (int i = 0; i < n; ++i) sdf[i] = fb.sdf(s.field_offset + i);
     ev.tau.resize(n);
     CompositeWeights(n, sdf.data(), *p.block[kBlockLogBeta], ray.samples.deltas.data(),
-                     ev.tau.data());
+                     model.options().density, ev.tau.data());
   }
   w.tau = ray.cycle_tau.empty() ? &ev.tau : &ray.cycle_tau;
   const std::vector<double>& tau = *w.tau;

@@ -144,7 +144,7 @@ class RayPipeline {
   // One ray's values shared by the steps of pass 3.
   struct RayWork {
     RayWork(int r, const Ray& ray, const RayParameters& p, RayScratch& s, RayEvaluation& ev,
-            const RayLossWeights& weights);
+            const RayLossWeights& weights, DensityModel density);
     const int r;
     const Ray& ray;
     const RayParameters& p;

@@ -65,7 +65,7 @@ class RayReferenceFunctor {
     const T* pose_code = block[kBlockPoseCode];
     const T* rest_code = block[kBlockRestPoseCode];
 
-    const RayCompositeFunctor composite(ray_, weights);
+    const RayCompositeFunctor composite(ray_, weights, model.options().density);
     const CompositeLocals& L = composite.locals();
     std::vector<T> u(L.size, T(0));
     std::vector<T> x_star(3 * n);
@@ -142,7 +142,8 @@ class RayReferenceFunctor {
     std::vector<double> tau = ray_.cycle_tau;
     if (tau.empty()) {
       std::vector<T> tau_t(n);
-      CompositeWeights(n, &u[L.sdf], u[L.log_beta], ray_.samples.deltas.data(), tau_t.data());
+      CompositeWeights(n, &u[L.sdf], u[L.log_beta], ray_.samples.deltas.data(),
+                       model.options().density, tau_t.data());
       for (const T& v : tau_t) tau.push_back(ValueOf(v));
     }
     for (int i = 0; i < n; ++i) {

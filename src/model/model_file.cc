@@ -67,6 +67,7 @@ class OptionsWriter {
   void Write(double v) { out_ << FormatDouble(v); }
   void Write(bool v) { out_ << (v ? "true" : "false"); }
   void Write(Activation v) { out_ << (v == Activation::kRelu ? "relu" : "softplus"); }
+  void Write(DensityModel v) { out_ << EnumName(v); }
   void Write(std::optional<double>& v) {
     if (v) {
       Write(*v);
@@ -204,6 +205,14 @@ class OptionsReader {
     } else {
       Fail(node_, "softplus or relu");
     }
+  }
+  // Absent in files written before the option: those models are VolSDF's
+  // (the struct's default).
+  void Read(DensityModel* v) {
+    const std::optional<DensityModel> d =
+        ParseEnum<DensityModel>(node_.IsScalar() ? node_.Scalar() : std::string());
+    if (!d) Fail(node_, "one of " + EnumChoices<DensityModel>());
+    *v = *d;
   }
   void Read(std::optional<double>* v) {
     if (node_.IsScalar() && node_.Scalar() == "auto") {

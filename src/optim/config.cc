@@ -99,6 +99,7 @@ void VisitFields(V& v, SamplingConfig& o) {
   v("match_grid_points", o.match_grid_points);
   v("match_top_k", o.match_top_k);
   v("frames_per_batch", o.frames_per_batch);
+  v("unbiased_silhouette", o.unbiased_silhouette);
 }
 
 template <class V>
@@ -638,6 +639,10 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Positive(g + ".match_grid_points", s.sampling.match_grid_points);
   c.Positive(g + ".match_top_k", s.sampling.match_top_k);
   c.NonNegative(g + ".frames_per_batch", s.sampling.frames_per_batch);
+  if (s.sampling.unbiased_silhouette && !(s.sampling.foreground_fraction < 1.0)) {
+    c.Fail(g + ".unbiased_silhouette",
+           "needs sampling.foreground_fraction < 1 (background pixels are never drawn at 1)");
+  }
   if (s.sampling.match_top_k > s.sampling.match_grid_points) {
     c.Fail(g + ".match_top_k", "expected <= sampling.match_grid_points (",
            s.sampling.match_grid_points, "), got ", s.sampling.match_top_k);

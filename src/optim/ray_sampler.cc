@@ -69,6 +69,9 @@ Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
     for (int k = 0; k < kFeatureDim; ++k) ray.feature[k] = static_cast<float>(feat[k]);
     ray.has_feature = true;
   }
+  if (sampling.unbiased_silhouette && ray.mask >= 0.0) {
+    ray.silhouette_weight = PixelWeight(v, t, ray.mask >= 0.5, sampling);
+  }
   double near, far;
   const Pose camera_from_root = model.RootPose(v, t);
   NearFarPlanes(camera_from_root, canonical_bounds, sampling.near_far_margin, &near, &far);
@@ -169,6 +172,17 @@ Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfi
     y = std::uniform_int_distribution<int>(0, f.mask.rows - 1)(*rng);
   }
   return MakeRay(v, t, x, y, samples_per_ray, sampling, model, bounds, rng);
+}
+
+double RaySampler::PixelWeight(int video, int frame, bool object,
+                               const SamplingConfig& sampling) const {
+  const Frame& f = dataset_.videos[video].frames[frame];
+  const double n = static_cast<double>(f.mask.rows) * f.mask.cols;
+  const double n_object = static_cast<double>(object_pixels_[video][frame].size());
+  const double fg = sampling.foreground_fraction;
+  if (n_object == 0.0) return 1.0;  // every draw is uniform
+  CHECK_LT(fg, 1.0) << "no pixel weight for foreground_fraction 1";
+  return object ? 1.0 / (fg * n / n_object + 1.0 - fg) : 1.0 / (1.0 - fg);
 }
 
 void RaySampler::RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors) {

@@ -8,6 +8,8 @@
 
 namespace banmo {
 
+RayLossWeights GoldenRayLossWeights() { return RayLossWeights({1.0, 1.0, 0.01, 1.0, 0.01, 1.0}); }
+
 TestScene MakeTestScene(const TestSceneOptions& o) {
   std::mt19937 rng(o.seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -26,6 +28,7 @@ TestScene MakeTestScene(const TestSceneOptions& o) {
   // saturated (opacity well inside (0, 1)): every derivative is exercised.
   mo.field.init_sphere_radius = 0.3;
   mo.init_beta = 0.15;
+  mo.density = o.density;
   mo.seed = o.seed;
   if (o.delta_skinning) {
     mo.delta_skinning.enabled = true;
@@ -94,6 +97,7 @@ TestScene MakeTestScene(const TestSceneOptions& o) {
     ray.uv = Eigen::Vector2d(32.0 + 8.0 * u(rng), 31.0 + 8.0 * u(rng));
     ray.rgb = Eigen::Vector3d(0.5 + 0.4 * u(rng), 0.5 + 0.4 * u(rng), 0.5 + 0.4 * u(rng));
     ray.mask = 1.0;
+    ray.silhouette_weight = o.silhouette_weight;
     ray.has_flow = true;
     ray.flow = Eigen::Vector2d(2.0 * u(rng), 2.0 * u(rng));
     ray.has_feature = true;

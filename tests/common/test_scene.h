@@ -13,6 +13,9 @@
 
 namespace banmo {
 
+// rgb 1, silhouette 1, flow 0.01, feature_match 1, cycle_2d 0.01, cycle_3d 1.
+RayLossWeights GoldenRayLossWeights();
+
 struct TestSceneOptions {
   int mlp_width = 8;       // hidden width of all MLPs
   int sdf_layers = 2;      // hidden layers of the SDF MLP
@@ -28,10 +31,14 @@ struct TestSceneOptions {
   // layer, 1 band, 3-d pose codes) with a random, non-zero output layer so
   // every derivative of the delta path is exercised.
   bool delta_skinning = false;
+  double silhouette_weight = 1.0;  // every ray's Ray::silhouette_weight
+  DensityModel density = DensityModel::kVolSdf;
   uint32_t seed = 7;
   // The weights the golden values were generated with (not the config's
   // defaults): rgb, silhouette, flow, feature_match, cycle_2d, cycle_3d.
-  RayLossWeights weights = RayLossWeights({1.0, 1.0, 0.01, 1.0, 0.01, 1.0});
+  // (Built out of line: GCC 12 reports the inlined std::array temporary of
+  // an in-class initialiser as uninitialised, -Wuninitialized.)
+  RayLossWeights weights = GoldenRayLossWeights();
 };
 
 struct TestScene {

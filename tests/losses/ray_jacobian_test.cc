@@ -248,6 +248,90 @@ TEST(DeltaSkinning, OffEqualsOnWhileTheOutputLayerIsZero) {
   for (size_t k = 0; k < on.size(); ++k) EXPECT_EQ(on[k], off[k]) << k;
 }
 
+// Ray::silhouette_weight (sampling.unbiased_silhouette) multiplies the
+// silhouette term's weight: its residual and Jacobian rows scale by the
+// square root, and no other term changes.
+TestSceneOptions SilhouetteWeightOptions(double weight) {
+  TestSceneOptions o;
+  o.silhouette_weight = weight;
+  return o;
+}
+
+TestSceneOptions NeusOptions() {
+  TestSceneOptions o;
+  o.density = DensityModel::kNeus;
+  return o;
+}
+
+// model.density neus: every term's mixed-mode Jacobian matches the full-Jet
+// reference and the batched cache (the NeuS weights' own Jets are checked
+// against differences in tests/volume), and the residuals differ from
+// VolSDF's (the option reaches the pipeline).
+TEST(RayBatch, NeusDensityMatchesFullJetReference) {
+  TestScene scene = MakeTestScene(NeusOptions());
+  TestScene volsdf = MakeTestScene(TestSceneOptions());
+  RayBatch& batch = *scene.batch;
+  for (LossTerm term : RayTerms()) {
+    for (int r = 0; r < batch.num_rays(); ++r) {
+      auto mixed = batch.MakeCostFunction(r, term);
+      auto reference = MakeReferenceCostFunction(batch, r, term);
+      const std::vector<double*> params = batch.TermParameterBlocks(r, term);
+      const auto a = EvaluateCost(*mixed, params);
+      const auto b = EvaluateCost(*reference, params);
+      ASSERT_TRUE(a.ok && b.ok);
+      EXPECT_LT((a.residuals - b.residuals).cwiseAbs().maxCoeff(),
+                1e-12 * std::max(1.0, b.residuals.cwiseAbs().maxCoeff()))
+          << LossTermName(term) << " ray " << r;
+      EXPECT_LT(RelativeJacobianError(a, b), kReferenceTolerance)
+          << LossTermName(term) << " ray " << r;
+      const auto v = EvaluateCost(*volsdf.batch->MakeCostFunction(r, term),
+                                  volsdf.batch->TermParameterBlocks(r, term));
+      if (term == LossTerm::kSilhouette) {
+        EXPECT_GT((a.residuals - v.residuals).cwiseAbs().maxCoeff(), 1e-6) << "ray " << r;
+      }
+    }
+  }
+  batch.EvaluateAll(/*jacobians=*/true);
+  for (LossTerm term : RayTerms()) {
+    for (int r = 0; r < batch.num_rays(); ++r) {
+      auto cost = batch.MakeCostFunction(r, term);
+      const std::vector<double*> params = batch.TermParameterBlocks(r, term);
+      const auto cached = EvaluateCost(*cost, params);
+      batch.Invalidate();
+      const auto single = EvaluateCost(*cost, params);
+      batch.EvaluateAll(true);
+      EXPECT_LT(RelativeJacobianError(cached, single), kBatchTolerance)
+          << LossTermName(term) << " ray " << r;
+    }
+  }
+}
+
+TEST(RayBatch, SilhouetteWeightScalesOnlyTheSilhouetteRows) {
+  TestScene plain = MakeTestScene(SilhouetteWeightOptions(1.0));
+  TestScene weighted = MakeTestScene(SilhouetteWeightOptions(4.0));
+  for (LossTerm term : RayTerms()) {
+    const double scale = term == LossTerm::kSilhouette ? 2.0 : 1.0;
+    for (int r = 0; r < plain.batch->num_rays(); ++r) {
+      const auto a = EvaluateCost(*plain.batch->MakeCostFunction(r, term),
+                                  plain.batch->TermParameterBlocks(r, term));
+      const auto b = EvaluateCost(*weighted.batch->MakeCostFunction(r, term),
+                                  weighted.batch->TermParameterBlocks(r, term));
+      ASSERT_TRUE(a.ok && b.ok);
+      ASSERT_EQ(a.residuals.size(), b.residuals.size());
+      EXPECT_LT((b.residuals - scale * a.residuals).cwiseAbs().maxCoeff(),
+                1e-14 * std::max(1.0, a.residuals.cwiseAbs().maxCoeff()))
+          << LossTermName(term) << " ray " << r;
+      ASSERT_EQ(a.jacobians.size(), b.jacobians.size());
+      for (size_t k = 0; k < a.jacobians.size(); ++k) {
+        if (a.jacobians[k].size() == 0) continue;
+        EXPECT_LT((b.jacobians[k] - scale * a.jacobians[k]).cwiseAbs().maxCoeff(),
+                  1e-13 * std::max(1.0, a.jacobians[k].cwiseAbs().maxCoeff()))
+            << LossTermName(term) << " ray " << r << " block " << k;
+      }
+    }
+  }
+}
+
 // Without field Jacobians (the pose solves) the residuals and every other
 // block's Jacobian are the same bits; the MLP-weight blocks have none.
 TEST(RayBatch, FieldJacobiansOffKeepsEveryOtherBlock) {

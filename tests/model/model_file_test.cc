@@ -135,6 +135,7 @@ void ExpectSameModel(const Model& a, const Model& b) {
 TEST(ModelFile, RoundTripIsBitwise) {
   ModelOptions options = SmallOptions();
   options.init_beta = 0.1 / 3.0;  // not a short decimal
+  options.density = DensityModel::kNeus;
   options.auto_size.grow_at = {0.25, 0.5};
   options.delta_skinning.enabled = true;
   options.delta_skinning.width = 8;
@@ -148,6 +149,7 @@ TEST(ModelFile, RoundTripIsBitwise) {
   ExpectSameModel(*model, *back);
   EXPECT_TRUE(back->has_delta_skinning());
   EXPECT_EQ(back->options().init_beta, options.init_beta);
+  EXPECT_EQ(back->options().density, DensityModel::kNeus);
   EXPECT_EQ(back->options().auto_size.grow_at, options.auto_size.grow_at);
   EXPECT_EQ(back->options().delta_skinning.pose_code_dim, 3);
   // Not recorded: stays not recorded.
@@ -241,7 +243,8 @@ TEST(ModelFile, LoadsACheckpointOfThePreviousFormat) {
   EXPECT_EQ(model->video(0).frames.size(), 2u);
   EXPECT_EQ(model->video(0).camera.width, 16);
   EXPECT_GT(model->scene_scale(), 0.0);
-  EXPECT_FALSE(model->canonical_bounds().has_value());  // not recorded then
+  EXPECT_FALSE(model->canonical_bounds().has_value());         // not recorded then
+  EXPECT_EQ(model->options().density, DensityModel::kVolSdf);  // the only density then
   // Its training sampling is the last stage of its config.
   ASSERT_TRUE(model->training_sampling().has_value());
   EXPECT_EQ(model->training_sampling()->samples_per_ray, 8);

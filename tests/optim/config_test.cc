@@ -321,6 +321,11 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).sampling.frames_per_batch = -1; }},
       {"stages[1].sampling.clip_margin",
        [&](SolverConfig* c) { S(c).sampling.clip_margin = -0.1; }},
+      {"stages[1].sampling.unbiased_silhouette",
+       [&](SolverConfig* c) {
+         S(c).sampling.unbiased_silhouette = true;
+         S(c).sampling.foreground_fraction = 1.0;
+       }},
       {"stages[1].sampling.match_top_k",
        [&](SolverConfig* c) { S(c).sampling.match_top_k = S(c).sampling.match_grid_points + 1; }},
       {"stages[1].schedule.bone_reinit_at[0]",
@@ -528,6 +533,7 @@ SolverConfig EveryFieldChanged() {
   m.num_bones = 13;
   m.init_bone_scale = 0.1 / 3.0;  // not exactly representable in short decimal
   m.init_beta = 0.07;
+  m.density = DensityModel::kNeus;
   m.seed = 4000000000u;
   m.delta_skinning.enabled = true;
   m.delta_skinning.width = 24;
@@ -570,6 +576,7 @@ SolverConfig EveryFieldChanged() {
     s.sampling.match_grid_points = 1000;
     s.sampling.match_top_k = 10;
     s.sampling.frames_per_batch = 6;
+    s.sampling.unbiased_silhouette = true;
     s.sampling.clip_to_box = true;
     s.sampling.clip_margin = 0.05;
     s.schedule.bone_reinit_at = {0.1, 0.9};
@@ -627,6 +634,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
   EXPECT_EQ(a.model.num_bones, b.model.num_bones);
   EXPECT_EQ(a.model.init_bone_scale, b.model.init_bone_scale);
   EXPECT_EQ(a.model.init_beta, b.model.init_beta);
+  EXPECT_EQ(a.model.density, b.model.density);
   EXPECT_EQ(a.model.seed, b.model.seed);
   EXPECT_EQ(a.model.delta_skinning.enabled, b.model.delta_skinning.enabled);
   EXPECT_EQ(a.model.delta_skinning.width, b.model.delta_skinning.width);
@@ -689,6 +697,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.sampling.match_grid_points, t.sampling.match_grid_points);
     EXPECT_EQ(s.sampling.match_top_k, t.sampling.match_top_k);
     EXPECT_EQ(s.sampling.frames_per_batch, t.sampling.frames_per_batch);
+    EXPECT_EQ(s.sampling.unbiased_silhouette, t.sampling.unbiased_silhouette);
     EXPECT_EQ(s.sampling.clip_to_box, t.sampling.clip_to_box);
     EXPECT_EQ(s.sampling.clip_margin, t.sampling.clip_margin);
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
@@ -916,6 +925,8 @@ TEST(SolverConfig, UnknownOptionNamesListTheChoices) {
       {"stages:\n  - losses:\n      flow: {robust: {type: l1}}\n",
        "t.yaml: stages[0].losses.flow.robust.type: expected one of {none, huber, cauchy, soft_l1, "
        "arctan, tolerant}, got 'l1' (line 3)"},
+      {"model: {density: nerf}\nstages: [{}]\n",
+       "t.yaml: model.density: expected one of {volsdf, neus}, got 'nerf' (line 1)"},
       {"defaults:\n  step_rule: [adam]\nstages: [{}]\n",
        "t.yaml: defaults.step_rule: expected one of {adam, lm, alternate}, got a list (line 2)"},
   };

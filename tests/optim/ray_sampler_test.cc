@@ -134,6 +134,52 @@ TEST(RaySampler, FramesPerBatchSpreadsTheRaysOverThatManyFrames) {
   for (size_t r = 0; r < ra.size(); ++r) EXPECT_EQ(ra[r].uv, rb[r].uv);
 }
 
+// sampling.unbiased_silhouette: over many draws of one frame, the
+// importance-weighted mean of any pixel quantity is its mean over all the
+// frame's pixels (here the object indicator and the known-mask indicator),
+// while the unweighted mean favours the object pixels.
+TEST(RaySampler, UnbiasedSilhouetteWeightsUndoTheObjectPreference) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
+  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  sampling.unbiased_silhouette = true;
+  sampling.foreground_fraction = 0.6;
+  const auto [v, t] = sampler.UsableFrames().front();
+  const cv::Mat& mask = data.videos[v].frames[t].mask;
+  const double n = static_cast<double>(mask.total());
+  const double object_share = cv::countNonZero(mask == kMaskObject) / n;
+  const double known_share = object_share + cv::countNonZero(mask == kMaskBackground) / n;
+  ASSERT_GT(object_share, 0.01);
+  ASSERT_LT(object_share, 0.5);
+  std::mt19937 rng(11);
+  const int count = 40000;
+  const std::vector<Ray> rays =
+      sampler.SampleFrame(v, t, count, 2, sampling, *model, kBounds, &rng);
+  double weighted_object = 0, weighted_known = 0, unweighted_object = 0;
+  for (const Ray& r : rays) {
+    if (r.mask < 0) {
+      EXPECT_EQ(r.silhouette_weight, 1.0);  // no silhouette term
+      continue;
+    }
+    EXPECT_EQ(r.silhouette_weight, sampler.PixelWeight(v, t, r.mask >= 0.5, sampling));
+    weighted_object += r.silhouette_weight * (r.mask >= 0.5);
+    weighted_known += r.silhouette_weight;
+    unweighted_object += r.mask >= 0.5;
+  }
+  // Standard errors at 40,000 draws are below 0.004 for these indicators
+  // (weights <= 1 / (1 - 0.6) = 2.5); 0.015 is about 4 of them.
+  EXPECT_NEAR(weighted_object / count, object_share, 0.015);
+  EXPECT_NEAR(weighted_known / count, known_share, 0.015);
+  EXPECT_GT(unweighted_object / count, object_share + 0.4);
+  // Off: every weight is 1.
+  sampling.unbiased_silhouette = false;
+  for (const Ray& r : sampler.SampleFrame(v, t, 100, 2, sampling, *model, kBounds, &rng)) {
+    EXPECT_EQ(r.silhouette_weight, 1.0);
+  }
+}
+
 // Active sampling draws near the pixels with the largest recorded errors.
 TEST(RaySampler, ActiveRaysRevisitLargeErrors) {
   const Dataset& data = testing::TinyQuadrupedDataset();

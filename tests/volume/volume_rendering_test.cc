@@ -3,8 +3,10 @@
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 namespace banmo {
 namespace {
@@ -38,7 +40,8 @@ TEST(CompositeWeights, SumToOpacityBelowOne) {
   const RaySamples s = StratifiedSamples(32, 2.0, 4.0, 1.0, true, &rng);
   std::vector<double> sdf(32), tau(32);
   for (int i = 0; i < 32; ++i) sdf[i] = std::abs(s.depths[i] - 3.0) - 0.5;  // slab [2.5, 3.5]
-  CompositeWeights(32, sdf.data(), std::log(0.01), s.deltas.data(), tau.data());
+  CompositeWeights(32, sdf.data(), std::log(0.01), s.deltas.data(), DensityModel::kVolSdf,
+                   tau.data());
   double opacity = 0.0;
   for (double t : tau) {
     EXPECT_GE(t, 0.0);
@@ -56,13 +59,110 @@ TEST(CompositeWeights, TinyBetaGivesFiniteStepWeights) {
   std::vector<J> sdf(16), tau(16);
   std::vector<double> deltas(16, 0.1);
   for (int i = 0; i < 16; ++i) sdf[i] = J(0.45 - 0.1 * i, 0);
-  CompositeWeights(16, sdf.data(), J(std::log(1e-4)), deltas.data(), tau.data());
+  CompositeWeights(16, sdf.data(), J(std::log(1e-4)), deltas.data(), DensityModel::kVolSdf,
+                   tau.data());
   double total = 0;
   for (const J& t : tau) {
     EXPECT_TRUE(ceres::isfinite(t));
     total += t.a;
   }
   EXPECT_NEAR(total, 1.0, 1e-9);
+}
+
+// Opacity of a ray passing at distance `miss` outside a sphere of radius R
+// (negative: through it), with many samples so discretisation is small.
+double SphereRayOpacity(DensityModel density, double radius, double miss, double beta) {
+  const int n = 4000;
+  const double half = 3.0;  // the ray runs from x = -3 to 3 at height R + miss
+  std::vector<double> sdf(n), deltas(n, 2 * half / n), tau(n);
+  for (int i = 0; i < n; ++i) {
+    const double x = -half + (i + 0.5) * 2 * half / n;
+    sdf[i] = std::hypot(x, radius + miss) - radius;
+  }
+  CompositeWeights(n, sdf.data(), std::log(beta), deltas.data(), density, tau.data());
+  double opacity = 0;
+  for (double t : tau) opacity += t;
+  return opacity;
+}
+
+// NeuS: a ray grazing the zero level set has opacity 1/2 whatever the
+// curvature, so the silhouette is the zero level set's; a ray whose SDF
+// falls to m has opacity 1 - sigmoid(m / beta) (3 beta outside: 0.047). VolSDF's grazing
+// opacity depends on the radius and exceeds 1/2 (its silhouette lies outside).
+TEST(CompositeWeights, NeusGrazingRayHasHalfOpacityAtAnyCurvature) {
+  const double beta = 0.05;
+  for (double radius : {0.1, 0.3, 1.0}) {
+    // 4,000 samples over 6 units: 0.0015 apart, so the sampled minimum of the
+    // SDF is within ~1e-5 of the true one; 1e-3 on the opacity.
+    EXPECT_NEAR(SphereRayOpacity(DensityModel::kNeus, radius, 0.0, beta), 0.5, 1e-3) << radius;
+    EXPECT_NEAR(SphereRayOpacity(DensityModel::kNeus, radius, 3 * beta, beta),
+                1.0 / (1.0 + std::exp(3.0)), 1e-3)
+        << radius;
+    // Through the sphere, reaching depth R / 2 inside: 1 - sigmoid(-R / (2 beta))
+    // (the start, f_0 >= 2, has Phi = 1 to 1e-17).
+    EXPECT_NEAR(SphereRayOpacity(DensityModel::kNeus, radius, -0.5 * radius, beta),
+                1.0 - 1.0 / (1.0 + std::exp(0.5 * radius / beta)), 1e-3)
+        << radius;
+    EXPECT_GT(SphereRayOpacity(DensityModel::kVolSdf, radius, 0.0, beta), 0.6) << radius;
+  }
+}
+
+// NeuS weights are finite with their derivatives for tiny beta (an opaque
+// step at the crossing) and sum to the opacity; the last sample has none.
+TEST(CompositeWeights, NeusTinyBetaFiniteAndLastSampleEmpty) {
+  using J = ceres::Jet<double, 1>;
+  std::vector<J> sdf(16), tau(16);
+  std::vector<double> deltas(16, 0.1);
+  for (int i = 0; i < 16; ++i) sdf[i] = J(0.45 - 0.1 * i, 0);
+  CompositeWeights(16, sdf.data(), J(std::log(1e-4)), deltas.data(), DensityModel::kNeus,
+                   tau.data());
+  double total = 0;
+  for (const J& t : tau) {
+    EXPECT_TRUE(ceres::isfinite(t));
+    total += t.a;
+  }
+  EXPECT_NEAR(total, 1.0, 1e-9);
+  EXPECT_EQ(tau[4].a, 1.0);  // 0.05 -> -0.05: the whole opacity at the crossing
+  EXPECT_EQ(tau[15].a, 0.0);
+}
+
+// NeuS weights' Jets against central differences in every SDF value and
+// log beta, on a ray that enters and leaves a soft object (rising SDF
+// intervals get no opacity: their kink is away from these values).
+TEST(CompositeWeights, NeusJetsMatchCentralDifferences) {
+  constexpr int kN = 8;
+  using J = ceres::Jet<double, kN + 1>;
+  const double f[kN] = {0.4, 0.22, 0.07, -0.06, -0.11, -0.02, 0.13, 0.31};
+  const double log_beta = std::log(0.08);
+  std::vector<J> sdf(kN), tau(kN);
+  for (int i = 0; i < kN; ++i) sdf[i] = J(f[i], i);
+  std::vector<double> deltas(kN, 0.1);
+  CompositeWeights(kN, sdf.data(), J(log_beta, kN), deltas.data(), DensityModel::kNeus, tau.data());
+  auto weights = [&](const double* values, double lb) {
+    std::vector<double> out(kN);
+    CompositeWeights(kN, values, lb, deltas.data(), DensityModel::kNeus, out.data());
+    return out;
+  };
+  // Step 1e-6: truncation error ~1e-12 x third derivative (O(1 / beta^3) ~
+  // 2e3), rounding ~1e-16 / 1e-6; 1e-7 leaves room for both.
+  const double h = 1e-6;
+  for (int k = 0; k <= kN; ++k) {
+    double plus[kN], minus[kN];
+    std::copy(f, f + kN, plus);
+    std::copy(f, f + kN, minus);
+    double lb_plus = log_beta, lb_minus = log_beta;
+    if (k < kN) {
+      plus[k] += h;
+      minus[k] -= h;
+    } else {
+      lb_plus += h;
+      lb_minus -= h;
+    }
+    const std::vector<double> a = weights(plus, lb_plus), b = weights(minus, lb_minus);
+    for (int i = 0; i < kN; ++i) {
+      EXPECT_NEAR(tau[i].v[k], (a[i] - b[i]) / (2 * h), 1e-7) << "tau " << i << " d " << k;
+    }
+  }
 }
 
 TEST(StratifiedSamples, OnePerBinAndPositiveDeltas) {

@@ -37,6 +37,9 @@ struct Ray {
   Eigen::Vector2d uv = Eigen::Vector2d::Zero();   // pixel position (camera.h convention)
   Eigen::Vector3d rgb = Eigen::Vector3d::Zero();  // observed colour in [0, 1]
   double mask = -1.0;  // 1 object, 0 background, < 0 unknown (no silhouette term)
+  // Factor on the silhouette term's weight: the pixel's importance weight
+  // under sampling.unbiased_silhouette (RaySampler::PixelWeight), else 1.
+  double silhouette_weight = 1.0;
   bool has_flow = false;
   Eigen::Vector2d flow = Eigen::Vector2d::Zero();  // observed flow t -> t' (pixels)
   bool has_feature = false;

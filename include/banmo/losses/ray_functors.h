@@ -114,8 +114,11 @@ struct CompositeLocals {
 // out as CompositeLocals. (Names: docs/design.md, "Names".)
 class RayCompositeFunctor {
  public:
-  RayCompositeFunctor(const Ray& ray, const RayLossWeights& weights)
-      : ray_(ray), weights_(weights), locals_(CompositeLocals::For(ray, weights)) {
+  RayCompositeFunctor(const Ray& ray, const RayLossWeights& weights, DensityModel density)
+      : ray_(ray),
+        weights_(weights),
+        density_(density),
+        locals_(CompositeLocals::For(ray, weights)) {
     for (int t = 0; t < kNumCompositeTerms; ++t) {
       const LossTerm term = RayTerm(t);
       active_[t] = ray.HasTerm(term, weights);
@@ -131,7 +134,7 @@ class RayCompositeFunctor {
   bool operator()(const T* u, T* residual) const {
     const int n = locals_.num_samples;
     std::vector<T> tau(n);
-    CompositeWeights(n, u + locals_.sdf, u[locals_.log_beta], ray_.samples.deltas.data(),
+    CompositeWeights(n, u + locals_.sdf, u[locals_.log_beta], ray_.samples.deltas.data(), density_,
                      tau.data());
     int row = 0;
     if (active(LossTerm::kRgb)) {
@@ -145,7 +148,8 @@ class RayCompositeFunctor {
     if (active(LossTerm::kSilhouette)) {
       T opacity(0);
       for (int i = 0; i < n; ++i) opacity += tau[i];
-      SilhouetteLoss(ray_.mask, weights_[LossTerm::kSilhouette])(&opacity, residual + row);
+      SilhouetteLoss(ray_.mask, weights_[LossTerm::kSilhouette] * ray_.silhouette_weight)(
+          &opacity, residual + row);
       row += SilhouetteLoss::kNumResiduals;
     }
     if (active(LossTerm::kFlow)) {
@@ -176,6 +180,7 @@ class RayCompositeFunctor {
  private:
   const Ray& ray_;
   const RayLossWeights weights_;
+  const DensityModel density_;
   const CompositeLocals locals_;
   bool active_[kNumCompositeTerms] = {};
   int num_residuals_ = 0;

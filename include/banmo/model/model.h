@@ -41,14 +41,17 @@
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/model/auto_size_options.h"
+#include "banmo/volume/density_model.h"
 
 namespace banmo {
 
 struct ModelOptions {
-  CanonicalFieldOptions field;          // MLP sizes, encoding, appearance code size
-  int num_bones = 8;                    // B; 0 = rigid object (no skinning)
-  double init_bone_scale = 0.15;        // isotropic Gaussian scale of new bones (canonical units)
-  double init_beta = 0.05;              // VolSDF beta at initialisation (canonical units)
+  CanonicalFieldOptions field;    // MLP sizes, encoding, appearance code size
+  int num_bones = 8;              // B; 0 = rigid object (no skinning)
+  double init_bone_scale = 0.15;  // isotropic Gaussian scale of new bones (canonical units)
+  double init_beta = 0.05;        // density scale beta at initialisation (canonical units)
+  // How the SDF becomes rendering weights (volume/volume_rendering.h).
+  DensityModel density = DensityModel::kVolSdf;
   uint32_t seed = 0;                    // MLP initialisation seed
   DeltaSkinningOptions delta_skinning;  // optional MLP_Delta (needs num_bones >= 1)
   // Scene scale s, dataset units per model unit (finite, > 0). Empty = auto:

@@ -62,6 +62,7 @@ void VisitFields(V& v, ModelOptions& o) {
   v("num_bones", o.num_bones);
   v("init_bone_scale", o.init_bone_scale);
   v("init_beta", o.init_beta);
+  v("density", o.density);
   v("seed", o.seed);
   v("delta_skinning", o.delta_skinning);
   v("scene_scale", o.scene_scale);

@@ -115,6 +115,11 @@ struct SamplingConfig {
   // frames at random, the rays spread evenly over them (0 = every ray from
   // a frame of its own draw).
   int frames_per_batch = 0;
+  // The silhouette residual of each ray is weighted by its pixel's
+  // importance weight (RaySampler::PixelWeight): the loss is then an
+  // unbiased estimate of the mean over all pixels instead of favouring
+  // the object pixels the sampler draws more often.
+  bool unbiased_silhouette = false;
 };
 
 struct ScheduleConfig {

@@ -36,6 +36,16 @@ class RaySampler {
                                const Eigen::AlignedBox3d& canonical_bounds,
                                std::mt19937* rng) const;
 
+  // Importance weight of a pixel of frame (video, frame) drawn by the
+  // sampler's mixture (`foreground_fraction` inside the mask, the rest
+  // uniform over the image): (1 / N) / p(pixel), N the frame's pixel count.
+  // A ray's loss times this weight has the expectation of the same loss
+  // over pixels drawn uniformly, and the weights of a frame's draws average
+  // 1. Object pixels: 1 / (f N / N_object + 1 - f); others: 1 / (1 - f).
+  // Active rays take their pixel's weight too (an approximation: the
+  // error cache's emphasis stays).
+  double PixelWeight(int video, int frame, bool object, const SamplingConfig& sampling) const;
+
   // The usable (not skipped) frames, as (video, frame), in dataset order.
   std::vector<std::pair<int, int>> UsableFrames() const {
     std::vector<std::pair<int, int>> out;
