@@ -23,8 +23,9 @@
 // 1 - Phi(f_min) / Phi(f_0): 1/2 for a ray that grazes the zero level set
 // (f_0 >> beta), whatever the surface's curvature, so the silhouette a
 // silhouette loss fits is the zero level set's. With VolSDF's density it lies
-// outside the zero level set by about beta to 1.5 beta (a grazing ray
-// gathers density along its whole path through the shell).
+// outside the zero level set by about 1 to 2 beta for radii of curvature
+// of 2 to 20 beta (a grazing ray gathers density along its whole path
+// through the shell: beta ln(sqrt(2 pi R / beta) / (2 ln 2)) to first order).
 #pragma once
 
 #include <ceres/jet.h>
