@@ -45,6 +45,25 @@ bool NumericSubset() {
 #endif
 }
 
+// The batch's cached evaluation of each ray's `term` against the same ray
+// evaluated alone (kBatchTolerance).
+void ExpectBatchedCacheEqualsSingleRay(RayBatch& batch, LossTerm term) {
+  batch.EvaluateAll(/*jacobians=*/true);
+  ASSERT_TRUE(batch.cache_valid());
+  for (int r = 0; r < batch.num_rays(); ++r) {
+    auto cost = batch.MakeCostFunction(r, term);
+    const std::vector<double*> params = batch.TermParameterBlocks(r, term);
+    const auto cached = EvaluateCost(*cost, params);  // model pointers: served from the cache
+    batch.Invalidate();
+    const auto single = EvaluateCost(*cost, params);  // evaluated alone
+    batch.EvaluateAll(true);
+    EXPECT_LT((cached.residuals - single.residuals).cwiseAbs().maxCoeff(), 1e-13)
+        << LossTermName(term) << " ray " << r;
+    EXPECT_LT(RelativeJacobianError(cached, single), kBatchTolerance)
+        << LossTermName(term) << " ray " << r;
+  }
+}
+
 class RayTermJacobian : public ::testing::TestWithParam<LossTerm> {};
 
 TEST_P(RayTermJacobian, MatchesFullJetReference) {
@@ -69,21 +88,8 @@ TEST_P(RayTermJacobian, MatchesFullJetReference) {
 }
 
 TEST_P(RayTermJacobian, BatchedCacheEqualsSingleRay) {
-  const LossTerm term = GetParam();
   TestScene scene = MakeTestScene(TestSceneOptions());
-  RayBatch& batch = *scene.batch;
-  batch.EvaluateAll(/*jacobians=*/true);
-  ASSERT_TRUE(batch.cache_valid());
-  for (int r = 0; r < batch.num_rays(); ++r) {
-    auto cost = batch.MakeCostFunction(r, term);
-    const std::vector<double*> params = batch.TermParameterBlocks(r, term);
-    const auto cached = EvaluateCost(*cost, params);  // model pointers: served from the cache
-    batch.Invalidate();
-    const auto single = EvaluateCost(*cost, params);  // evaluated alone
-    batch.EvaluateAll(true);
-    EXPECT_LT((cached.residuals - single.residuals).cwiseAbs().maxCoeff(), 1e-13);
-    EXPECT_LT(RelativeJacobianError(cached, single), kBatchTolerance) << "ray " << r;
-  }
+  ExpectBatchedCacheEqualsSingleRay(*scene.batch, GetParam());
 }
 
 TEST_P(RayTermJacobian, AgreesWithNumericDifferentiation) {
@@ -172,20 +178,8 @@ TEST_P(DeltaSkinningJacobian, MatchesFullJetReferencePerBlock) {
 }
 
 TEST_P(DeltaSkinningJacobian, BatchedCacheEqualsSingleRay) {
-  const LossTerm term = GetParam();
   TestScene scene = MakeTestScene(DeltaSceneOptions());
-  RayBatch& batch = *scene.batch;
-  batch.EvaluateAll(/*jacobians=*/true);
-  for (int r = 0; r < batch.num_rays(); ++r) {
-    auto cost = batch.MakeCostFunction(r, term);
-    const std::vector<double*> params = batch.TermParameterBlocks(r, term);
-    const auto cached = EvaluateCost(*cost, params);
-    batch.Invalidate();
-    const auto single = EvaluateCost(*cost, params);
-    batch.EvaluateAll(true);
-    EXPECT_LT((cached.residuals - single.residuals).cwiseAbs().maxCoeff(), 1e-13);
-    EXPECT_LT(RelativeJacobianError(cached, single), kBatchTolerance) << "ray " << r;
-  }
+  ExpectBatchedCacheEqualsSingleRay(*scene.batch, GetParam());
 }
 
 TEST_P(DeltaSkinningJacobian, AgreesWithNumericDifferentiation) {
@@ -291,19 +285,7 @@ TEST(RayBatch, NeusDensityMatchesFullJetReference) {
       }
     }
   }
-  batch.EvaluateAll(/*jacobians=*/true);
-  for (LossTerm term : RayTerms()) {
-    for (int r = 0; r < batch.num_rays(); ++r) {
-      auto cost = batch.MakeCostFunction(r, term);
-      const std::vector<double*> params = batch.TermParameterBlocks(r, term);
-      const auto cached = EvaluateCost(*cost, params);
-      batch.Invalidate();
-      const auto single = EvaluateCost(*cost, params);
-      batch.EvaluateAll(true);
-      EXPECT_LT(RelativeJacobianError(cached, single), kBatchTolerance)
-          << LossTermName(term) << " ray " << r;
-    }
-  }
+  for (LossTerm term : RayTerms()) ExpectBatchedCacheEqualsSingleRay(batch, term);
 }
 
 TEST(RayBatch, SilhouetteWeightScalesOnlyTheSilhouetteRows) {

@@ -54,19 +54,27 @@ TEST(CompositeWeights, SumToOpacityBelowOne) {
   EXPECT_NEAR(s.depths[peak], 2.5, 2.0 / 32 + 1e-9);
 }
 
+// Both densities: finite weights and derivatives for tiny beta (an opaque
+// step at the crossing), summing to the opacity 1. NeuS puts the whole
+// opacity on the interval of the crossing, and the last sample has none.
 TEST(CompositeWeights, TinyBetaGivesFiniteStepWeights) {
   using J = ceres::Jet<double, 1>;
-  std::vector<J> sdf(16), tau(16);
-  std::vector<double> deltas(16, 0.1);
-  for (int i = 0; i < 16; ++i) sdf[i] = J(0.45 - 0.1 * i, 0);
-  CompositeWeights(16, sdf.data(), J(std::log(1e-4)), deltas.data(), DensityModel::kVolSdf,
-                   tau.data());
-  double total = 0;
-  for (const J& t : tau) {
-    EXPECT_TRUE(ceres::isfinite(t));
-    total += t.a;
+  for (DensityModel density : {DensityModel::kVolSdf, DensityModel::kNeus}) {
+    std::vector<J> sdf(16), tau(16);
+    std::vector<double> deltas(16, 0.1);
+    for (int i = 0; i < 16; ++i) sdf[i] = J(0.45 - 0.1 * i, 0);
+    CompositeWeights(16, sdf.data(), J(std::log(1e-4)), deltas.data(), density, tau.data());
+    double total = 0;
+    for (const J& t : tau) {
+      EXPECT_TRUE(ceres::isfinite(t)) << EnumName(density);
+      total += t.a;
+    }
+    EXPECT_NEAR(total, 1.0, 1e-9) << EnumName(density);
+    if (density == DensityModel::kNeus) {
+      EXPECT_EQ(tau[4].a, 1.0);  // 0.05 -> -0.05
+      EXPECT_EQ(tau[15].a, 0.0);
+    }
   }
-  EXPECT_NEAR(total, 1.0, 1e-9);
 }
 
 // Opacity of a ray passing at distance `miss` outside a sphere of radius R
@@ -105,25 +113,6 @@ TEST(CompositeWeights, NeusGrazingRayHasHalfOpacityAtAnyCurvature) {
         << radius;
     EXPECT_GT(SphereRayOpacity(DensityModel::kVolSdf, radius, 0.0, beta), 0.6) << radius;
   }
-}
-
-// NeuS weights are finite with their derivatives for tiny beta (an opaque
-// step at the crossing) and sum to the opacity; the last sample has none.
-TEST(CompositeWeights, NeusTinyBetaFiniteAndLastSampleEmpty) {
-  using J = ceres::Jet<double, 1>;
-  std::vector<J> sdf(16), tau(16);
-  std::vector<double> deltas(16, 0.1);
-  for (int i = 0; i < 16; ++i) sdf[i] = J(0.45 - 0.1 * i, 0);
-  CompositeWeights(16, sdf.data(), J(std::log(1e-4)), deltas.data(), DensityModel::kNeus,
-                   tau.data());
-  double total = 0;
-  for (const J& t : tau) {
-    EXPECT_TRUE(ceres::isfinite(t));
-    total += t.a;
-  }
-  EXPECT_NEAR(total, 1.0, 1e-9);
-  EXPECT_EQ(tau[4].a, 1.0);  // 0.05 -> -0.05: the whole opacity at the crossing
-  EXPECT_EQ(tau[15].a, 0.0);
 }
 
 // NeuS weights' Jets against central differences in every SDF value and
