@@ -16,11 +16,16 @@ namespace {
 
 const Eigen::AlignedBox3d kBounds(Eigen::Vector3d::Constant(-1.2), Eigen::Vector3d::Constant(1.2));
 
-TEST(RaySampler, RaysCarryTheirDataAndSortedSamples) {
+// The tiny quadruped dataset, a model for it and a sampler over it.
+class RaySamplerTest : public ::testing::Test {
+ protected:
   const Dataset& data = testing::TinyQuadrupedDataset();
-  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
-  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
-  RaySampler sampler(data);
+  const std::unique_ptr<Model> model =
+      MakeModelForDataset(data, testing::TinySolverConfig(StepRule::kAdam, 1).model);
+  RaySampler sampler{data};
+};
+
+TEST_F(RaySamplerTest, RaysCarryTheirDataAndSortedSamples) {
   SamplingConfig sampling;
   sampling.flow_gaps = {1, 2};
   std::mt19937 rng(5);
@@ -55,11 +60,7 @@ TEST(RaySampler, RaysCarryTheirDataAndSortedSamples) {
 // clip_to_box: every ray's samples lie in its part inside the widened box
 // (ClipDepthsToBox), which for object rays is shorter than the frame's
 // near-far range.
-TEST(RaySampler, ClipToBoxKeepsTheSamplesInTheWidenedBox) {
-  const Dataset& data = testing::TinyQuadrupedDataset();
-  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
-  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
-  RaySampler sampler(data);
+TEST_F(RaySamplerTest, ClipToBoxKeepsTheSamplesInTheWidenedBox) {
   SamplingConfig sampling;
   sampling.clip_to_box = true;
   sampling.clip_margin = 0.05;
@@ -83,11 +84,7 @@ TEST(RaySampler, ClipToBoxKeepsTheSamplesInTheWidenedBox) {
   EXPECT_GE(clipped, 50);  // at least the object rays
 }
 
-TEST(RaySampler, SameSeedSameRays) {
-  const Dataset& data = testing::TinyQuadrupedDataset();
-  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
-  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
-  RaySampler sampler(data);
+TEST_F(RaySamplerTest, SameSeedSameRays) {
   SamplingConfig sampling;
   std::mt19937 a(9), b(9);
   const std::vector<Ray> ra = sampler.Sample(50, 8, sampling, *model, kBounds, &a);
@@ -102,11 +99,7 @@ TEST(RaySampler, SameSeedSameRays) {
 
 // sampling.frames_per_batch: a batch's rays come from that many distinct
 // frames, evenly; different batches draw different frames.
-TEST(RaySampler, FramesPerBatchSpreadsTheRaysOverThatManyFrames) {
-  const Dataset& data = testing::TinyQuadrupedDataset();
-  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
-  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
-  RaySampler sampler(data);
+TEST_F(RaySamplerTest, FramesPerBatchSpreadsTheRaysOverThatManyFrames) {
   const int usable = static_cast<int>(sampler.UsableFrames().size());
   ASSERT_GT(usable, 3);
   SamplingConfig sampling;
@@ -138,11 +131,7 @@ TEST(RaySampler, FramesPerBatchSpreadsTheRaysOverThatManyFrames) {
 // importance-weighted mean of any pixel quantity is its mean over all the
 // frame's pixels (here the object indicator and the known-mask indicator),
 // while the unweighted mean favours the object pixels.
-TEST(RaySampler, UnbiasedSilhouetteWeightsUndoTheObjectPreference) {
-  const Dataset& data = testing::TinyQuadrupedDataset();
-  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
-  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
-  RaySampler sampler(data);
+TEST_F(RaySamplerTest, UnbiasedSilhouetteWeightsUndoTheObjectPreference) {
   SamplingConfig sampling;
   sampling.unbiased_silhouette = true;
   sampling.foreground_fraction = 0.6;
@@ -181,11 +170,7 @@ TEST(RaySampler, UnbiasedSilhouetteWeightsUndoTheObjectPreference) {
 }
 
 // Active sampling draws near the pixels with the largest recorded errors.
-TEST(RaySampler, ActiveRaysRevisitLargeErrors) {
-  const Dataset& data = testing::TinyQuadrupedDataset();
-  const SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 1);
-  const std::unique_ptr<Model> model = MakeModelForDataset(data, config.model);
-  RaySampler sampler(data);
+TEST_F(RaySamplerTest, ActiveRaysRevisitLargeErrors) {
   SamplingConfig sampling;
   std::mt19937 rng(2);
   const std::vector<Ray> first = sampler.Sample(64, 8, sampling, *model, kBounds, &rng);
