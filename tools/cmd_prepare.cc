@@ -3,7 +3,6 @@
 // more video in an existing dataset (--add).
 #include <CLI/CLI.hpp>
 #include <cstdio>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -11,25 +10,11 @@
 #include "banmo/io/prepare.h"
 #include "banmo/util/error.h"
 #include "banmo/util/timer.h"
+#include "cli_options.h"
 #include "command.h"
 
 namespace banmo {
 namespace {
-
-std::vector<double> ParseNumbers(const std::string& text, const std::string& option) {
-  std::vector<double> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || *end != '\0') {
-      ThrowInputError(option, ": '", item, "' is not a number (expected a comma-separated list)");
-    }
-    out.push_back(v);
-  }
-  return out;
-}
 
 int RunPrepare(int argc, char** argv) {
   CLI::App app{
@@ -111,12 +96,12 @@ int RunPrepare(int argc, char** argv) {
     ThrowInputError("banmo prepare: give --video FILE or --frames DIR");
   }
   options.gaps.clear();
-  for (double g : ParseNumbers(gaps, "--gaps")) {
+  for (double g : tools::ParseNumberList("--gaps", gaps)) {
     if (g != static_cast<int>(g)) ThrowInputError("--gaps: ", g, " is not an integer");
     options.gaps.push_back(static_cast<int>(g));
   }
   if (!intrinsics.empty()) {
-    const std::vector<double> k = ParseNumbers(intrinsics, "--intrinsics");
+    const std::vector<double> k = tools::ParseNumberList("--intrinsics", intrinsics);
     if (k.size() != 4) ThrowInputError("--intrinsics: expected fx,fy,cx,cy (4 numbers)");
     options.intrinsics = Eigen::Vector4d(k[0], k[1], k[2], k[3]);
   }

@@ -49,6 +49,9 @@ void SynthOptions::Check() const {
   }
   if (!(std::abs(elevation_wobble_deg) <= 10)) fail("elevation_wobble_deg", "|.| <= 10");
   if (!(object_scale >= 1e-6 && object_scale <= 1e6)) fail("object_scale", "in [1e-6, 1e6]");
+  if (!(root_offset.allFinite() && root_offset.norm() <= 100)) {
+    fail("root_offset", "finite with length <= 100");
+  }
   if (!std::isfinite(root_yaw_wobble_deg)) fail("root_yaw_wobble_deg", "a finite number");
   if (!(root_drift >= 0 && root_drift <= 1)) fail("root_drift", "in [0, 1]");
   if (!(speed_jitter >= 0 && speed_jitter < 1)) fail("speed_jitter", "in [0, 1)");
@@ -312,6 +315,15 @@ ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
 
 namespace {
 
+// The pose of a root frame whose origin is moved so that the old origin sits
+// at `offset`: x_new = x_old + offset, so camera_from_new =
+// camera_from_old * T(-offset) (SynthOptions::root_offset).
+Pose OffsetRootFrame(const Pose& camera_from_root, const Eigen::Vector3d& offset) {
+  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+  shift.translation() = -offset;
+  return PoseFromIsometry(IsometryFromPose(camera_from_root.data()) * shift);
+}
+
 // Per-frame geometry kept for the second (shading / flow) pass.
 struct FrameGeometry {
   Eigen::Matrix3Xd vertices;  // camera coordinates
@@ -532,8 +544,10 @@ void RenderVideo(const FrameImaging& im, const ScenePlan& plan, int v,
     for (int f = begin; f < end; ++f) {
       Frame& frame = video.frames[f];
       frame.index = f;
-      frame.root_pose_gt = plan.frames[v][f].camera_from_root_gt;
-      frame.root_pose_init = plan.frames[v][f].camera_from_root_init;
+      frame.root_pose_gt =
+          OffsetRootFrame(plan.frames[v][f].camera_from_root_gt, im.options.root_offset);
+      frame.root_pose_init =
+          OffsetRootFrame(plan.frames[v][f].camera_from_root_init, im.options.root_offset);
       RenderFrameImages(im, v, f, geometry[f], &frame);
       RenderFrameFlows(im, scene->dataset.flow_gaps, f, geometry, &frame);
     }

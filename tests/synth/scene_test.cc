@@ -6,11 +6,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <opencv2/imgproc.hpp>
 
+#include "banmo/geometry/se3.h"
 #include "banmo/io/dataset.h"
 #include "banmo/synth/features.h"
 #include "banmo/synth/rasterizer.h"
@@ -345,6 +347,48 @@ TEST(Scene, ObjectScaleScalesLengthsAndKeepsImages) {
     }
   }
   o.object_scale = 0;
+  EXPECT_THROW(o.Check(), InputError);
+}
+
+// root_offset: the same images, depth and ground-truth meshes; only the root
+// frame moves, so every written root pose (ground truth and rough) becomes
+// camera_from_root * T(-s offset) (s = object_scale): the same rotation, the
+// translation t - s R offset (1e-12: one product and sum of O(1) numbers).
+TEST(Scene, RootOffsetMovesTheRootFrameOnly) {
+  const Rig rig = LoadRig("quadruped");
+  SynthOptions o;
+  o.num_videos = 1;
+  o.frames_per_video = 3;
+  o.image_size = 32;
+  o.flow_gaps = {1};
+  o.pose_noise_deg = 10;
+  o.object_scale = 2;
+  const SynthScene ref = RenderSyntheticScene(rig, o);
+  o.root_offset = Eigen::Vector3d(0.3, -0.9, 0.5);
+  const SynthScene moved = RenderSyntheticScene(rig, o);
+  const Eigen::Vector3d shift = o.object_scale * o.root_offset;
+  for (int f = 0; f < o.frames_per_video; ++f) {
+    const Frame& a = ref.dataset.videos[0].frames[f];
+    const Frame& b = moved.dataset.videos[0].frames[f];
+    EXPECT_EQ(cv::norm(a.rgb, b.rgb, cv::NORM_INF), 0);
+    EXPECT_EQ(cv::norm(a.mask, b.mask, cv::NORM_INF), 0);
+    EXPECT_EQ(cv::norm(a.depth, b.depth, cv::NORM_INF), 0);
+    EXPECT_EQ(ref.gt_meshes[0][f].vertices, moved.gt_meshes[0][f].vertices);
+    for (const auto& [pa, pb] : {std::make_pair(a.root_pose_gt.value(), b.root_pose_gt.value()),
+                                 std::make_pair(a.root_pose_init, b.root_pose_init)}) {
+      const Eigen::Isometry3d ia = IsometryFromPose(pa.data());
+      const Eigen::Isometry3d ib = IsometryFromPose(pb.data());
+      EXPECT_LE((ia.linear() - ib.linear()).cwiseAbs().maxCoeff(), 1e-12);
+      EXPECT_LE((ia.translation() - ia.linear() * shift - ib.translation()).norm(), 1e-12);
+      // A root point seen by the old frame at x is seen by the new one at
+      // x + shift: the same camera point.
+      const Eigen::Vector3d x(0.2, 0.1, -0.4);
+      EXPECT_LE((ia * x - ib * (x + shift)).norm(), 1e-12);
+    }
+  }
+  o.root_offset = Eigen::Vector3d(0, 200, 0);
+  EXPECT_THROW(o.Check(), InputError);
+  o.root_offset = Eigen::Vector3d(0, std::nan(""), 0);
   EXPECT_THROW(o.Check(), InputError);
 }
 

@@ -93,5 +93,31 @@ TEST(SynthCommand, PoseNoiseModel) {
   EXPECT_FALSE(std::filesystem::exists(bad));
 }
 
+// --root-offset: the printout says where the object sits in the root frame;
+// a malformed or too large offset is an error naming the flag or field
+// (exit 2, nothing written).
+TEST(SynthCommand, RootOffset) {
+  const std::string out = Temp("offset_ds");
+  std::filesystem::remove_all(out);
+  const auto r = RunBanmo(
+      "synth --videos 1 --frames 2 --size 32 --gaps 1 --root-offset 0,-0.8,0.25 --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("object centre at (0, -0.8, 0.25) in the root frame"), std::string::npos)
+      << r.out;
+  const std::string bad = Temp("bad_offset_ds");
+  std::filesystem::remove_all(bad);
+  const auto two = RunBanmo("synth --root-offset 1,2 --out " + bad);
+  EXPECT_EQ(two.exit_code, 2) << two.out;
+  EXPECT_NE(two.out.find("--root-offset '1,2': expected 3 finite numbers"), std::string::npos)
+      << two.out;
+  const auto word = RunBanmo("synth --root-offset 1,up,2 --out " + bad);
+  EXPECT_EQ(word.exit_code, 2) << word.out;
+  EXPECT_NE(word.out.find("'up' is not a number"), std::string::npos) << word.out;
+  const auto far = RunBanmo("synth --root-offset 0,500,0 --out " + bad);
+  EXPECT_EQ(far.exit_code, 2) << far.out;
+  EXPECT_NE(far.out.find("root_offset"), std::string::npos) << far.out;
+  EXPECT_FALSE(std::filesystem::exists(bad));
+}
+
 }  // namespace
 }  // namespace banmo::synth

@@ -132,6 +132,13 @@ struct SynthOptions {
   // s after rendering, so images, masks, flow and features are unchanged and
   // only lengths differ (the stability suite's tiny and huge objects).
   double object_scale = 1.0;
+  // Where the object's rest bounding-box centre sits in the root frame
+  // (normalised root units, before object_scale): the written root poses
+  // become camera_from_root * T(-root_offset), nothing else changes (images,
+  // flow, features, ground-truth meshes and the noise of the rough poses
+  // are those of the centred scene). Models rigs whose origin is far from
+  // the object, as glTF rigs with the origin at the feet. |.| <= 100.
+  Eigen::Vector3d root_offset = Eigen::Vector3d::Zero();
 
   // Throws InputError naming the offending field and the expected range.
   void Check() const;
