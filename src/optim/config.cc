@@ -110,6 +110,7 @@ void VisitFields(V& v, ScheduleConfig& o) {
   v("anneal_end_fraction", o.anneal_end_fraction);
   v("delta_skinning_from", o.delta_skinning_from);
   v("root_free_from", o.root_free_from);
+  v("unbiased_silhouette_from", o.unbiased_silhouette_from);
 }
 
 template <class V>
@@ -654,6 +655,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
   c.Fraction(h + ".root_free_from", s.schedule.root_free_from);
+  c.NonNegative(h + ".unbiased_silhouette_from", s.schedule.unbiased_silhouette_from);
+  if (s.schedule.unbiased_silhouette_from < 1.0 && !(s.sampling.foreground_fraction < 1.0)) {
+    c.Fail(h + ".unbiased_silhouette_from",
+           "needs sampling.foreground_fraction < 1 (background pixels are never drawn at 1)");
+  }
 
   const std::string q = p + ".pose_solve";
   c.IncreasingFractions(q + ".at", s.pose_solve.at);
@@ -683,6 +689,13 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
 }
 
 }  // namespace
+
+SamplingConfig SamplingAt(const StageConfig& stage, double fraction) {
+  SamplingConfig sampling = stage.sampling;
+  const double from = stage.schedule.unbiased_silhouette_from;
+  sampling.unbiased_silhouette = sampling.unbiased_silhouette || (from < 1.0 && fraction >= from);
+  return sampling;
+}
 
 SolverConfig LoadSolverConfig(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

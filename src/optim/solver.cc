@@ -221,7 +221,7 @@ void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunConte
   // ---- The minibatch. ----
   sp->ClearMinibatch();
   sp->ScheduleGroups(fraction);
-  std::vector<Ray> rays = SampleRays(stage, sp->batch(), &c->sampler, &state->rng);
+  std::vector<Ray> rays = SampleRays(stage, fraction, sp->batch(), &c->sampler, &state->rng);
   const Eigen::Matrix3Xd grid =
       UniformPoints(bounds_, stage.sampling.match_grid_points, &state->rng);
   sp->SetMinibatch(std::move(rays), grid, bounds_, &state->rng);
@@ -310,11 +310,11 @@ void Solver::ReportBatch(int batch_index, const StageRun& run, const TermLosses&
   std::fflush(stdout);
 }
 
-std::vector<Ray> Solver::SampleRays(const StageConfig& stage, const RayBatch& batch,
-                                    RaySampler* sampler, std::mt19937* rng) {
+std::vector<Ray> Solver::SampleRays(const StageConfig& stage, double fraction,
+                                    const RayBatch& batch, RaySampler* sampler, std::mt19937* rng) {
   Model& model = *model_;
-  std::vector<Ray> rays =
-      sampler->Sample(stage.batch_rays, stage.samples_per_ray, stage.sampling, model, bounds_, rng);
+  std::vector<Ray> rays = sampler->Sample(stage.batch_rays, stage.samples_per_ray,
+                                          SamplingAt(stage, fraction), model, bounds_, rng);
   if (stage.sampling.importance_depth) {
     // Half the samples stay stratified, half are drawn from the rendering
     // weights of a first pass (NeRF's hierarchical sampling, one level).

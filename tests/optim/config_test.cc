@@ -344,6 +344,13 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).schedule.delta_skinning_from = -0.5; }},
       {"stages[1].schedule.root_free_from",
        [&](SolverConfig* c) { S(c).schedule.root_free_from = 1.5; }},
+      {"stages[1].schedule.unbiased_silhouette_from",
+       [&](SolverConfig* c) { S(c).schedule.unbiased_silhouette_from = -0.1; }},
+      {"stages[1].schedule.unbiased_silhouette_from",
+       [&](SolverConfig* c) {
+         S(c).schedule.unbiased_silhouette_from = 0.5;
+         S(c).sampling.foreground_fraction = 1.0;
+       }},
       {"stages[1].pose_solve.at[0]", [&](SolverConfig* c) { S(c).pose_solve.at = {-0.1}; }},
       {"stages[1].pose_solve.at[1]",
        [&](SolverConfig* c) {
@@ -585,6 +592,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.anneal_end_fraction = 0.4;
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
     s.schedule.root_free_from = 0.15;                     // before pose_solve.at[0]
+    s.schedule.unbiased_silhouette_from = 0.35;
     s.pose_solve.at = {0.2, 0.7};
     s.pose_solve.rays = 96;
     s.pose_solve.iterations = 4;
@@ -714,6 +722,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
     EXPECT_EQ(s.schedule.root_free_from, t.schedule.root_free_from);
+    EXPECT_EQ(s.schedule.unbiased_silhouette_from, t.schedule.unbiased_silhouette_from);
     EXPECT_EQ(s.checkpoint_every, t.checkpoint_every);
     EXPECT_EQ(s.log_every, t.log_every);
   }
@@ -958,6 +967,26 @@ TEST(SolverConfig, OptionNamesRoundTrip) {
   EXPECT_NE(yaml.find("step_rule: alternate"), std::string::npos) << yaml;
   EXPECT_NE(yaml.find("constant: [bones_t, pose_code]"), std::string::npos) << yaml;
   EXPECT_EQ(SolverConfigToYaml(ParseSolverConfig(yaml, "again.yaml")), yaml);
+}
+
+// schedule.unbiased_silhouette_from switches the silhouette weighting on at
+// a fraction of the stage; sampling.unbiased_silhouette means from the start.
+TEST(SolverConfig, SamplingAtSwitchesTheSilhouetteWeightingOn) {
+  StageConfig stage;
+  EXPECT_FALSE(SamplingAt(stage, 0.0).unbiased_silhouette);
+  EXPECT_FALSE(SamplingAt(stage, 1.0).unbiased_silhouette);  // default 1: never in the stage
+  stage.schedule.unbiased_silhouette_from = 0.3;
+  EXPECT_FALSE(SamplingAt(stage, 0.0).unbiased_silhouette);
+  EXPECT_FALSE(SamplingAt(stage, 0.29).unbiased_silhouette);
+  EXPECT_TRUE(SamplingAt(stage, 0.3).unbiased_silhouette);
+  EXPECT_TRUE(SamplingAt(stage, 0.9).unbiased_silhouette);
+  stage.sampling.unbiased_silhouette = true;
+  EXPECT_TRUE(SamplingAt(stage, 0.0).unbiased_silhouette);
+  // Nothing else of the sampling changes.
+  stage.sampling.frames_per_batch = 7;
+  stage.sampling.foreground_fraction = 0.4;
+  EXPECT_EQ(SamplingAt(stage, 0.5).frames_per_batch, 7);
+  EXPECT_EQ(SamplingAt(stage, 0.5).foreground_fraction, 0.4);
 }
 
 }  // namespace

@@ -134,6 +134,10 @@ struct ScheduleConfig {
   // it they are held constant, so the shape first forms in the initial
   // root poses (0: free from the start).
   double root_free_from = 0.0;
+  // Fraction of the stage from which the silhouette residuals carry their
+  // pixels' importance weights, as under sampling.unbiased_silhouette
+  // (>= 1: never; that key on means from the start).
+  double unbiased_silhouette_from = 1.0;
 };
 
 // Per-frame root-pose solves (docs/solver.md, "Pose solves"): at the given
@@ -176,6 +180,11 @@ struct StageConfig {
   int checkpoint_every = 0;  // batches between checkpoints (0 = end of stage only)
   int log_every = 10;        // batches between progress lines
 };
+
+// The stage's sampling at `fraction` of it: sampling.unbiased_silhouette is
+// on from schedule.unbiased_silhouette_from. The minibatches use it; the pose
+// solves keep the stage's own sampling.
+SamplingConfig SamplingAt(const StageConfig& stage, double fraction);
 
 struct SolverConfig {
   ModelOptions model;  // model.field.* = CanonicalFieldOptions fields

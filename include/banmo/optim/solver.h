@@ -130,10 +130,10 @@ class Solver {
   // Every frame's root pose by LM on its own rays (optim/pose_solve.h).
   void SolvePoses(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
                   SolveResult* result);
-  // The minibatch's rays (with importance-resampled depths when the stage
-  // asks for them).
-  std::vector<Ray> SampleRays(const StageConfig& stage, const RayBatch& batch, RaySampler* sampler,
-                              std::mt19937* rng);
+  // The minibatch's rays at `fraction` of the stage (SamplingAt), with
+  // importance-resampled depths when the stage asks for them.
+  std::vector<Ray> SampleRays(const StageConfig& stage, double fraction, const RayBatch& batch,
+                              RaySampler* sampler, std::mt19937* rng);
   void ReportBatch(int batch_index, const StageRun& run, const TermLosses& losses,
                    const RunContext& c) const;
   void NameBlocks(RunContext* c);
