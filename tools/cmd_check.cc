@@ -77,8 +77,16 @@ int RunCheck(int argc, char** argv) {
   std::string gaps;
   for (int g : dataset.flow_gaps) gaps += (gaps.empty() ? "" : ", ") + std::to_string(g);
   std::printf("flow gaps %s\n", gaps.empty() ? "none" : gaps.c_str());
-  // What `banmo solve` takes as its scene scale with model.scene_scale: auto.
-  const SceneScaleEstimate scale = EstimateSceneScale(dataset);
+  // What `banmo solve` takes as its canonical origin and scene scale with
+  // model.recentre: true and model.scene_scale: auto (the defaults).
+  const ObjectCentreEstimate centre = EstimateObjectCentre(dataset);
+  const SceneScaleEstimate scale = EstimateSceneScale(dataset, centre.centre);
+  const std::string centre_origin =
+      centre.triangulated
+          ? "object centre from " + std::to_string(centre.frames_used) + " mask(s)"
+          : std::string("the root origin: the cameras do not move enough to triangulate");
+  std::printf("centre    (%.4g, %.4g, %.4g) in the root frame (%s)\n", centre.centre.x(),
+              centre.centre.y(), centre.centre.z(), centre_origin.c_str());
   std::printf("scale     s = %.6g (estimate %.4g from %d frame(s)%s; docs/solver.md)\n",
               scale.scale, scale.estimate, scale.frames_used,
               scale.border_used ? ", all touching the image border" : "");

@@ -105,8 +105,10 @@ int RunSolve(int argc, char** argv) {
   // The scene scale (docs/solver.md, "Scene scale"), estimated here when
   // auto so that the estimate can be reported.
   std::string scale_origin = "model.scene_scale";
+  const ObjectCentreEstimate centre = EstimateObjectCentre(dataset);
   if (!model_options.scene_scale) {
-    const SceneScaleEstimate e = EstimateSceneScale(dataset);
+    const SceneScaleEstimate e = EstimateSceneScale(
+        dataset, model_options.recentre ? centre.centre : Eigen::Vector3d::Zero());
     model_options.scene_scale = e.scale;
     char text[160];
     std::snprintf(text, sizeof(text), "auto: estimate %.4g from %d frame(s)%s", e.estimate,
@@ -128,6 +130,19 @@ int RunSolve(int argc, char** argv) {
   if (!resume) {
     std::printf("banmo solve: scene scale s = %.6g (%s); model units = dataset units / s\n",
                 model->scene_scale(), scale_origin.c_str());
+    const Eigen::Vector3d c = model->canonical_origin() * model->scene_scale();
+    if (source == nullptr && model_options.recentre) {
+      if (centre.triangulated) {
+        std::printf(
+            "banmo solve: canonical origin at the object centre (%.4g, %.4g, %.4g) of the root "
+            "frame, triangulated from %d mask(s) (model.recentre)\n",
+            c.x(), c.y(), c.z(), centre.frames_used);
+      } else {
+        std::printf(
+            "banmo solve: canonical origin at the root origin: the cameras of the root poses do "
+            "not move enough to triangulate the object (model.recentre)\n");
+      }
+    }
   }
   Solver solver(dataset, config, std::move(model));
   const SolveResult result = solver.Run(options);

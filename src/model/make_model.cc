@@ -7,6 +7,13 @@
 
 namespace banmo {
 
+Pose ShiftedRootPose(const Pose& camera_from_root, const Eigen::Vector3d& origin) {
+  Pose out = camera_from_root;
+  const Eigen::Vector3d t = IsometryFromPose(camera_from_root.data()).linear() * origin;
+  for (int k = 0; k < 3; ++k) out[kPoseT + k] += t[k];
+  return out;
+}
+
 std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options) {
   std::vector<int> frames;
   std::vector<PinholeCamera> cameras;
@@ -15,13 +22,17 @@ std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOp
     cameras.push_back(v.camera);
   }
   auto model = std::make_unique<Model>(options, frames, cameras);
+  // The canonical origin at the object centre (root frame, dataset units).
+  const Eigen::Vector3d centre =
+      options.recentre ? EstimateObjectCentre(dataset).centre : Eigen::Vector3d::Zero();
   // Model units = dataset units / s (model/scene_scale.h).
-  const double s = ResolveSceneScale(dataset, options);
+  const double s = ResolveSceneScale(dataset, options, centre);
   model->set_scene_scale(s);
+  model->set_canonical_origin(centre / s);
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
     for (size_t t = 0; t < dataset.videos[v].frames.size(); ++t) {
       Pose& root_init = model->frame(v, t).root_init;
-      root_init = dataset.videos[v].frames[t].root_pose_init;
+      root_init = ShiftedRootPose(dataset.videos[v].frames[t].root_pose_init, centre);
       for (int k = 0; k < 3; ++k) root_init[kPoseT + k] /= s;
     }
   }
@@ -51,15 +62,20 @@ void CopySharedParameters(const Model& from, Model* to, const std::string& sourc
   // The shared shape is in `from`'s model units: `to` takes its scene scale,
   // its root translations re-expressed (exact for equal scales).
   const double ratio = to->scene_scale() / from.scene_scale();
+  // And its canonical origin moved to `from`'s (both in the root frame the
+  // two datasets share): G0 * T(c_from - c_to), c_to in `from`'s units.
+  const Eigen::Vector3d shift = from.canonical_origin() - ratio * to->canonical_origin();
   for (int v = 0; v < to->num_videos(); ++v) {
     for (FrameParameters& f : to->video(v).frames) {
       for (int k = 0; k < 3; ++k) {
         f.root_init[kPoseT + k] *= ratio;
         f.root_delta[kPoseT + k] *= ratio;
       }
+      f.root_init = ShiftedRootPose(f.root_init, shift);
     }
   }
   to->set_scene_scale(from.scene_scale());
+  to->set_canonical_origin(from.canonical_origin());
 }
 
 }  // namespace banmo

@@ -332,6 +332,8 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
   out << YAML::Key << "format" << YAML::Value << kModelFileFormat;
   out << YAML::Key << "parameters" << YAML::Value << count;
   out << YAML::Key << "scene_scale" << YAML::Value << FormatDouble(model.scene_scale());
+  out << YAML::Key << "canonical_origin" << YAML::Value;
+  WriteVector3(out, model.canonical_origin());
   out << YAML::Key << "options" << YAML::Value;
   OptionsWriter(&out).WriteStruct(options);
   if (model.canonical_bounds()) {
@@ -573,6 +575,13 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   auto model = std::make_unique<Model>(options, frames, cameras);
   model->set_scene_scale(scene_scale);
   if (sampling) model->set_training_sampling(*sampling);
+  if (!legacy && root["canonical_origin"].IsDefined()) {  // zero in files written before it
+    const Eigen::Vector3d c = ReadVector3(yaml_path, root, "canonical_origin");
+    if (!c.allFinite()) {
+      ThrowInputError(yaml_path, ": key 'canonical_origin': expected 3 finite numbers", kWhatToDo);
+    }
+    model->set_canonical_origin(c);
+  }
   const YAML::Node bounds = root["canonical_bounds"];
   if (!legacy && bounds.IsDefined()) {
     const std::string source = yaml_path + " (canonical_bounds)";

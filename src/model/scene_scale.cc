@@ -19,12 +19,12 @@ double Percentile(std::vector<double> values, double p) {
 
 }  // namespace
 
-SceneScaleEstimate EstimateSceneScale(const Dataset& dataset) {
+SceneScaleEstimate EstimateSceneScale(const Dataset& dataset, const Eigen::Vector3d& centre) {
   std::vector<double> inside, border;
   for (const Video& video : dataset.videos) {
     const Eigen::Vector4d& k = video.camera.intrinsics;
     for (const Frame& frame : video.frames) {
-      const double z = frame.root_pose_init[kPoseT + 2];
+      const double z = (IsometryFromPose(frame.root_pose_init.data()) * centre).z();
       if (frame.skip || frame.mask.empty() || !(z > 0) || !std::isfinite(z)) continue;
       int x0 = frame.mask.cols, y0 = frame.mask.rows, x1 = -1, y1 = -1;
       for (int y = 0; y < frame.mask.rows; ++y) {
@@ -62,8 +62,71 @@ SceneScaleEstimate EstimateSceneScale(const Dataset& dataset) {
   return out;
 }
 
-double ResolveSceneScale(const Dataset& dataset, const ModelOptions& options) {
-  return options.scene_scale ? *options.scene_scale : EstimateSceneScale(dataset).scale;
+ObjectCentreEstimate EstimateObjectCentre(const Dataset& dataset) {
+  // Camera centres o_f and unit rays d_f through the mask centroids, both in
+  // the root frame.
+  std::vector<Eigen::Vector3d> origins, directions;
+  for (const Video& video : dataset.videos) {
+    const Eigen::Vector4d& k = video.camera.intrinsics;
+    for (const Frame& frame : video.frames) {
+      if (frame.skip || frame.mask.empty()) continue;
+      double sx = 0, sy = 0;
+      long count = 0;
+      for (int y = 0; y < frame.mask.rows; ++y) {
+        const unsigned char* row = frame.mask.ptr<unsigned char>(y);
+        for (int x = 0; x < frame.mask.cols; ++x) {
+          if (row[x] != kMaskObject) continue;
+          sx += x + 0.5;
+          sy += y + 0.5;
+          ++count;
+        }
+      }
+      if (count == 0) continue;
+      const Eigen::Isometry3d camera_from_root = IsometryFromPose(frame.root_pose_init.data());
+      const Eigen::Matrix3d root_from_camera = camera_from_root.linear().transpose();
+      const Eigen::Vector3d o = -root_from_camera * camera_from_root.translation();
+      const Eigen::Vector3d d =
+          (root_from_camera *
+           Eigen::Vector3d((sx / count - k[2]) / k[0], (sy / count - k[3]) / k[1], 1.0))
+              .normalized();
+      if (!o.allFinite() || !d.allFinite()) continue;
+      origins.push_back(o);
+      directions.push_back(d);
+    }
+  }
+  ObjectCentreEstimate out;
+  out.frames_used = static_cast<int>(origins.size());
+  if (origins.empty()) return out;
+  const double n = out.frames_used;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  double distance = 0.0;
+  for (const Eigen::Vector3d& o : origins) {
+    mean += o / n;
+    distance += o.norm() / n;
+  }
+  double spread = 0.0;
+  for (const Eigen::Vector3d& o : origins) spread += (o - mean).squaredNorm() / n;
+  out.baseline_ratio = distance > 0 ? std::sqrt(spread) / distance : 0.0;
+  if (!(out.baseline_ratio >= kObjectCentreMinBaseline)) return out;
+  // Normal equations of sum_f |(I - d_f d_f^T)(x - o_f)|^2 + prior n |x|^2.
+  Eigen::Matrix3d a = kObjectCentrePrior * n * Eigen::Matrix3d::Identity();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (size_t f = 0; f < origins.size(); ++f) {
+    const Eigen::Matrix3d p =
+        Eigen::Matrix3d::Identity() - directions[f] * directions[f].transpose();
+    a += p;
+    b += p * origins[f];
+  }
+  const Eigen::Vector3d centre = a.ldlt().solve(b);
+  if (!centre.allFinite()) return out;
+  out.centre = centre;
+  out.triangulated = true;
+  return out;
+}
+
+double ResolveSceneScale(const Dataset& dataset, const ModelOptions& options,
+                         const Eigen::Vector3d& centre) {
+  return options.scene_scale ? *options.scene_scale : EstimateSceneScale(dataset, centre).scale;
 }
 
 }  // namespace banmo

@@ -51,6 +51,7 @@ TEST(CheckCommand, ValidDatasetPrintsSummary) {
   EXPECT_NE(r.out.find("frames    10 (1 skipped"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("flow gaps 1, 2"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("scale     s = "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("centre    ("), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("video video1: 5 frames, 24x20"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("present: rgb mask root_poses_init flow features depth gt_mesh "
                        "root_poses_gt"),

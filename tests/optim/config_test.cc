@@ -549,6 +549,7 @@ SolverConfig EveryFieldChanged() {
   m.delta_skinning.pose_code_dim = 12;
   m.delta_skinning.code_init_std = 0.07;
   m.scene_scale = 0.1 / 3.0;
+  m.recentre = false;
   // auto_size.enabled stays false: it cannot be combined with delta skinning.
   m.auto_size.max_bones = 40;
   m.auto_size.grow_at = {0.25, 0.5};
@@ -651,6 +652,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
   EXPECT_EQ(a.model.delta_skinning.pose_code_dim, b.model.delta_skinning.pose_code_dim);
   EXPECT_EQ(a.model.delta_skinning.code_init_std, b.model.delta_skinning.code_init_std);
   EXPECT_EQ(a.model.scene_scale, b.model.scene_scale);
+  EXPECT_EQ(a.model.recentre, b.model.recentre);
   EXPECT_EQ(a.model.auto_size.enabled, b.model.auto_size.enabled);
   EXPECT_EQ(a.model.auto_size.max_bones, b.model.auto_size.max_bones);
   EXPECT_EQ(a.model.auto_size.grow_at, b.model.auto_size.grow_at);

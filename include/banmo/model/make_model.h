@@ -11,15 +11,23 @@
 
 namespace banmo {
 
-// A model for `dataset`: cameras and frame counts from the data, the scene
-// scale s from options.scene_scale or estimated from the data
-// (model/scene_scale.h), G0^t from the dataset's rough root poses with their
-// translations divided by s, MLPs and bones initialised from options.
+// A model for `dataset`: cameras and frame counts from the data, the
+// canonical origin c at the object centre (EstimateObjectCentre) when
+// options.recentre, else at the root origin; the scene scale s from
+// options.scene_scale or estimated from the data (model/scene_scale.h);
+// G0^t = the dataset's rough root pose * T(c), translations divided by s;
+// MLPs and bones initialised from options.
 std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options);
+
+// camera_from_root * T(origin): the pose of a frame whose origin is `origin`
+// in the root frame (same rotation, translation t + R origin).
+Pose ShiftedRootPose(const Pose& camera_from_root, const Eigen::Vector3d& origin);
 
 // Motion retargeting (paper Sec. 4.4): copies the shared parameters (canonical
 // fields, beta, rest bones) of `from` into `to`; `to` takes `from`'s scene
-// scale (its root translations are re-expressed in `from`'s model units).
+// scale (its root translations are re-expressed in `from`'s model units) and
+// canonical origin (its G0^t re-based on it; the two datasets' root frames
+// are taken to be the same rig's).
 // Throws InputError naming `source` if the two models' sizes differ.
 void CopySharedParameters(const Model& from, Model* to, const std::string& source);
 

@@ -57,6 +57,12 @@ struct ModelOptions {
   // Scene scale s, dataset units per model unit (finite, > 0). Empty = auto:
   // estimated from the data by MakeModelForDataset (model/make_model.h).
   std::optional<double> scene_scale;
+  // The canonical frame is the dataset's root frame translated so that its
+  // origin is the object centre estimated from the masks and the rough root
+  // poses (EstimateObjectCentre, model/scene_scale.h): the initial SDF
+  // sphere, bones and canonical bounds start around the object wherever the
+  // rig's origin is. false: the root frame as it is.
+  bool recentre = true;
   AutoSizeOptions auto_size;  // automatic growth of B and the MLP widths
 
   // Throws InputError naming the field on a violated constraint.
@@ -116,6 +122,11 @@ class Model {
   // The ray sampling of training; empty when not recorded.
   const std::optional<TrainingSampling>& training_sampling() const { return training_sampling_; }
   void set_training_sampling(const TrainingSampling& s) { training_sampling_ = s; }
+  // Where the canonical origin is in the dataset's root frame (model units):
+  // G0^t = camera_from_root^t * T(canonical_origin) (MakeModelForDataset).
+  // Zero for models made with recentre off or saved before it was recorded.
+  const Eigen::Vector3d& canonical_origin() const { return canonical_origin_; }
+  void set_canonical_origin(const Eigen::Vector3d& c) { canonical_origin_ = c; }
 
   double* sdf() { return sdf_.data(); }
   double* color() { return color_.data(); }
@@ -187,6 +198,7 @@ class Model {
   double scene_scale_ = 1.0;
   std::optional<Eigen::AlignedBox3d> canonical_bounds_;
   std::optional<TrainingSampling> training_sampling_;
+  Eigen::Vector3d canonical_origin_ = Eigen::Vector3d::Zero();
   std::vector<VideoParameters> videos_;
 
   // ForEachBlock of both constnesses (Self = Model or const Model).

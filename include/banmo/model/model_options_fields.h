@@ -66,6 +66,7 @@ void VisitFields(V& v, ModelOptions& o) {
   v("seed", o.seed);
   v("delta_skinning", o.delta_skinning);
   v("scene_scale", o.scene_scale);
+  v("recentre", o.recentre);
   v("auto_size", o.auto_size);
 }
 

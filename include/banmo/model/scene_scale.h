@@ -4,8 +4,9 @@
 // [-1.2, 1.2]^3, the bone scales and the near/far planes assume that)
 // whatever the units of the data. s is estimated from the data:
 //
-//   size_f = z_f * |bbox_f| / 2,  z_f = root depth of frame f (z of the
-//            translation of G0^f, camera coordinates), |bbox_f| = diagonal
+//   size_f = z_f * |bbox_f| / 2,  z_f = depth of the object centre c in
+//            frame f (z of G0^f c, camera coordinates; c = 0, the root
+//            origin, unless given), |bbox_f| = diagonal
 //            of the mask's bounding box in focal-length units,
 //            sqrt((w / fx)^2 + (h / fy)^2) (w, h in pixels),
 //   estimate = 90th percentile of size_f over the frames,
@@ -30,11 +31,38 @@ struct SceneScaleEstimate {
   bool border_used = false;  // every usable frame touched the border: all were used
 };
 
-// The estimate above. A frame is usable when it is not skipped, has object
-// pixels (kMaskObject) and a positive finite root depth.
-SceneScaleEstimate EstimateSceneScale(const Dataset& dataset);
+// The estimate above, `centre` in the root frame (dataset units). A frame is
+// usable when it is not skipped, has object pixels (kMaskObject) and a
+// positive finite depth of the centre.
+SceneScaleEstimate EstimateSceneScale(const Dataset& dataset,
+                                      const Eigen::Vector3d& centre = Eigen::Vector3d::Zero());
 
-// options.scene_scale if set, else EstimateSceneScale(dataset).scale.
-double ResolveSceneScale(const Dataset& dataset, const ModelOptions& options);
+// Where the object is in the root frame (dataset units), from the masks and
+// the rough root poses alone: the point nearest, in least squares, to the
+// rays through the mask centroids of the usable frames (not skipped, with
+// object pixels), each ray weighted 1, plus a prior towards the root origin
+// of weight kObjectCentrePrior per frame for directions no pair of rays
+// constrains. The centroid of a mask is the projection of the object's
+// centre up to perspective and occlusion: a few percent of its size.
+// Triangulation needs cameras in different places: when the camera centres
+// spread less than kObjectCentreMinBaseline times their mean distance to the
+// root origin (identity root poses, as `banmo prepare` writes without
+// --poses, put every camera on one spot, where all rays meet), the centre is
+// the root origin and `triangulated` is false.
+struct ObjectCentreEstimate {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  int frames_used = 0;
+  bool triangulated = false;
+  double baseline_ratio = 0.0;  // RMS spread of the camera centres / their mean distance
+};
+constexpr double kObjectCentrePrior = 1e-3;
+constexpr double kObjectCentreMinBaseline = 0.1;
+ObjectCentreEstimate EstimateObjectCentre(const Dataset& dataset);
+
+// The scene scale s of a model for `dataset`: options.scene_scale if set,
+// else EstimateSceneScale(dataset, centre).scale with the object centre when
+// options.recentre (else the root origin).
+double ResolveSceneScale(const Dataset& dataset, const ModelOptions& options,
+                         const Eigen::Vector3d& centre = Eigen::Vector3d::Zero());
 
 }  // namespace banmo
