@@ -6,9 +6,7 @@
 #include "banmo/util/logging.h"
 
 namespace banmo {
-namespace {
-constexpr size_t kErrorCacheSize = 4096;
-}  // namespace
+namespace {}  // namespace
 
 RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
   object_pixels_.resize(dataset.videos.size());
@@ -192,12 +190,9 @@ void RaySampler::RecordErrors(const std::vector<Ray>& rays, const std::vector<do
     error_cache_.push_back(
         {r.video, r.frame, static_cast<int>(r.uv[0]), static_cast<int>(r.uv[1]), errors[i]});
   }
-  // Keep the largest errors.
-  if (error_cache_.size() > kErrorCacheSize) {
-    std::nth_element(error_cache_.begin(), error_cache_.begin() + kErrorCacheSize,
-                     error_cache_.end(),
-                     [](const CachedPixel& a, const CachedPixel& b) { return a.error > b.error; });
-    error_cache_.resize(kErrorCacheSize);
+  // Keep the most recent rays (oldest first).
+  if (error_cache_.size() > kErrorWindow) {
+    error_cache_.erase(error_cache_.begin(), error_cache_.end() - kErrorWindow);
   }
 }
 

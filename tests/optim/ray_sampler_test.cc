@@ -189,5 +189,36 @@ TEST_F(RaySamplerTest, ActiveRaysRevisitLargeErrors) {
   EXPECT_EQ(near, 32) << "active rays away from the only pixel with an error";
 }
 
+// The error cache is a window of the most recent rays: a huge error ages out
+// after kErrorWindow newer rays (before, the largest errors ever seen stayed
+// and stage 3's active rays revisited pixels of stage 1's early model).
+TEST_F(RaySamplerTest, OldErrorsAgeOutOfTheCache) {
+  SamplingConfig sampling;
+  std::mt19937 rng(3);
+  const std::vector<Ray> first = sampler.Sample(64, 8, sampling, *model, kBounds, &rng);
+  std::vector<double> errors(first.size(), 1.0);
+  errors[0] = 1e6;
+  sampler.RecordErrors(first, errors);
+  auto has_huge = [&] {
+    for (const RaySampler::CachedPixel& p : sampler.error_cache()) {
+      if (p.error > 1.0) return true;
+    }
+    return false;
+  };
+  const size_t batch = 512;
+  size_t newer = 0;
+  while (newer + batch < RaySampler::kErrorWindow) {
+    const std::vector<Ray> rays = sampler.Sample(batch, 2, sampling, *model, kBounds, &rng);
+    sampler.RecordErrors(rays, std::vector<double>(rays.size(), 1.0));
+    newer += rays.size();
+    ASSERT_TRUE(has_huge()) << "aged out after " << newer << " newer rays";
+    ASSERT_LE(sampler.error_cache().size(), RaySampler::kErrorWindow);
+  }
+  const std::vector<Ray> rays = sampler.Sample(batch, 2, sampling, *model, kBounds, &rng);
+  sampler.RecordErrors(rays, std::vector<double>(rays.size(), 1.0));
+  EXPECT_FALSE(has_huge());
+  EXPECT_EQ(sampler.error_cache().size(), RaySampler::kErrorWindow);
+}
+
 }  // namespace
 }  // namespace banmo

@@ -54,7 +54,12 @@ class RaySampler {
   }
 
   // Active sampling: remembers the rays of a batch with their errors; later
-  // batches draw `sampling.active_fraction` of their rays near the largest.
+  // batches draw `sampling.active_fraction` of their rays next to them,
+  // error-proportionally. The cache is a sliding window of the last
+  // kErrorWindow rays (8 batches of 512), so it follows the current model:
+  // errors of an early model (or of another stage) age out instead of
+  // drawing rays forever.
+  static constexpr size_t kErrorWindow = 4096;
   void RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors);
 
   // The error cache, for checkpoints (resume must reproduce active sampling).
