@@ -315,16 +315,23 @@ TEST(ScenePlan, NormalisationPoseNoiseAndCameraDistance) {
   }
 }
 
-// object_scale: the same images, every length times s (exact up to the
-// rounding of one multiplication: 1e-12 relative).
-TEST(Scene, ObjectScaleScalesLengthsAndKeepsImages) {
-  const Rig rig = LoadRig("quadruped");
+// One video of 3 frames, 32 px, rough poses 10 deg off: the scene the
+// transformed-scene tests below compare against.
+SynthOptions SmallNoisyScene() {
   SynthOptions o;
   o.num_videos = 1;
   o.frames_per_video = 3;
   o.image_size = 32;
   o.flow_gaps = {1};
   o.pose_noise_deg = 10;
+  return o;
+}
+
+// object_scale: the same images, every length times s (exact up to the
+// rounding of one multiplication: 1e-12 relative).
+TEST(Scene, ObjectScaleScalesLengthsAndKeepsImages) {
+  const Rig rig = LoadRig("quadruped");
+  SynthOptions o = SmallNoisyScene();
   const SynthScene ref = RenderSyntheticScene(rig, o);
   for (double s : {0.01, 100.0}) {
     o.object_scale = s;
@@ -356,12 +363,7 @@ TEST(Scene, ObjectScaleScalesLengthsAndKeepsImages) {
 // translation t - s R offset (1e-12: one product and sum of O(1) numbers).
 TEST(Scene, RootOffsetMovesTheRootFrameOnly) {
   const Rig rig = LoadRig("quadruped");
-  SynthOptions o;
-  o.num_videos = 1;
-  o.frames_per_video = 3;
-  o.image_size = 32;
-  o.flow_gaps = {1};
-  o.pose_noise_deg = 10;
+  SynthOptions o = SmallNoisyScene();
   o.object_scale = 2;
   const SynthScene ref = RenderSyntheticScene(rig, o);
   o.root_offset = Eigen::Vector3d(0.3, -0.9, 0.5);
