@@ -6,7 +6,6 @@
 #include "banmo/util/logging.h"
 
 namespace banmo {
-namespace {}  // namespace
 
 RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
   object_pixels_.resize(dataset.videos.size());

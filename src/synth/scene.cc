@@ -317,8 +317,10 @@ namespace {
 
 // The pose of a root frame whose origin is moved so that the old origin sits
 // at `offset`: x_new = x_old + offset, so camera_from_new =
-// camera_from_old * T(-offset) (SynthOptions::root_offset).
+// camera_from_old * T(-offset) (SynthOptions::root_offset). No offset: the
+// pose as it is, bit for bit (no round trip through a rotation matrix).
 Pose OffsetRootFrame(const Pose& camera_from_root, const Eigen::Vector3d& offset) {
+  if (offset.isZero()) return camera_from_root;
   Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
   shift.translation() = -offset;
   return PoseFromIsometry(IsometryFromPose(camera_from_root.data()) * shift);
