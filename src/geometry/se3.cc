@@ -5,6 +5,13 @@
 
 namespace banmo {
 
+Pose PoseWithOriginAt(const Pose& b_from_a, const Eigen::Vector3d& origin) {
+  Pose out = b_from_a;
+  const Eigen::Vector3d t = IsometryFromPose(b_from_a.data()).linear() * origin;
+  for (int k = 0; k < 3; ++k) out[kPoseT + k] += t[k];
+  return out;
+}
+
 Pose PoseIdentity() {
   Pose p;
   PoseSetIdentity(p.data());

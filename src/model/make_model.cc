@@ -7,13 +7,6 @@
 
 namespace banmo {
 
-Pose ShiftedRootPose(const Pose& camera_from_root, const Eigen::Vector3d& origin) {
-  Pose out = camera_from_root;
-  const Eigen::Vector3d t = IsometryFromPose(camera_from_root.data()).linear() * origin;
-  for (int k = 0; k < 3; ++k) out[kPoseT + k] += t[k];
-  return out;
-}
-
 std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options) {
   std::vector<int> frames;
   std::vector<PinholeCamera> cameras;
@@ -32,7 +25,7 @@ std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOp
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
     for (size_t t = 0; t < dataset.videos[v].frames.size(); ++t) {
       Pose& root_init = model->frame(v, t).root_init;
-      root_init = ShiftedRootPose(dataset.videos[v].frames[t].root_pose_init, centre);
+      root_init = PoseWithOriginAt(dataset.videos[v].frames[t].root_pose_init, centre);
       for (int k = 0; k < 3; ++k) root_init[kPoseT + k] /= s;
     }
   }
@@ -71,7 +64,7 @@ void CopySharedParameters(const Model& from, Model* to, const std::string& sourc
         f.root_init[kPoseT + k] *= ratio;
         f.root_delta[kPoseT + k] *= ratio;
       }
-      f.root_init = ShiftedRootPose(f.root_init, shift);
+      f.root_init = PoseWithOriginAt(f.root_init, shift);
     }
   }
   to->set_scene_scale(from.scene_scale());

@@ -17,6 +17,33 @@ double Percentile(std::vector<double> values, double p) {
   return values[lo] + (rank - static_cast<double>(lo)) * (values[hi] - values[lo]);
 }
 
+// The object pixels (kMaskObject) of a mask: their count, bounding box
+// (inclusive pixel indices) and the sums of their pixel centres.
+struct ObjectPixels {
+  long count = 0;
+  int x0 = 0, y0 = 0, x1 = -1, y1 = -1;
+  double sx = 0, sy = 0;
+};
+ObjectPixels FindObjectPixels(const cv::Mat& mask) {
+  ObjectPixels p;
+  p.x0 = mask.cols;
+  p.y0 = mask.rows;
+  for (int y = 0; y < mask.rows; ++y) {
+    const unsigned char* row = mask.ptr<unsigned char>(y);
+    for (int x = 0; x < mask.cols; ++x) {
+      if (row[x] != kMaskObject) continue;
+      p.x0 = std::min(p.x0, x);
+      p.x1 = std::max(p.x1, x);
+      p.y0 = std::min(p.y0, y);
+      p.y1 = std::max(p.y1, y);
+      p.sx += x + 0.5;
+      p.sy += y + 0.5;
+      ++p.count;
+    }
+  }
+  return p;
+}
+
 }  // namespace
 
 SceneScaleEstimate EstimateSceneScale(const Dataset& dataset, const Eigen::Vector3d& centre) {
@@ -26,23 +53,13 @@ SceneScaleEstimate EstimateSceneScale(const Dataset& dataset, const Eigen::Vecto
     for (const Frame& frame : video.frames) {
       const double z = (IsometryFromPose(frame.root_pose_init.data()) * centre).z();
       if (frame.skip || frame.mask.empty() || !(z > 0) || !std::isfinite(z)) continue;
-      int x0 = frame.mask.cols, y0 = frame.mask.rows, x1 = -1, y1 = -1;
-      for (int y = 0; y < frame.mask.rows; ++y) {
-        const unsigned char* row = frame.mask.ptr<unsigned char>(y);
-        for (int x = 0; x < frame.mask.cols; ++x) {
-          if (row[x] != kMaskObject) continue;
-          x0 = std::min(x0, x);
-          x1 = std::max(x1, x);
-          y0 = std::min(y0, y);
-          y1 = std::max(y1, y);
-        }
-      }
-      if (x1 < 0) continue;  // no object pixel
-      const double w = (x1 - x0 + 1) / k[0], h = (y1 - y0 + 1) / k[1];
+      const ObjectPixels p = FindObjectPixels(frame.mask);
+      if (p.count == 0) continue;  // no object pixel
+      const double w = (p.x1 - p.x0 + 1) / k[0], h = (p.y1 - p.y0 + 1) / k[1];
       const double size = 0.5 * z * std::sqrt(w * w + h * h);
       if (!std::isfinite(size)) continue;
       const bool touches =
-          x0 == 0 || y0 == 0 || x1 == frame.mask.cols - 1 || y1 == frame.mask.rows - 1;
+          p.x0 == 0 || p.y0 == 0 || p.x1 == frame.mask.cols - 1 || p.y1 == frame.mask.rows - 1;
       (touches ? border : inside).push_back(size);
     }
   }
@@ -70,24 +87,14 @@ ObjectCentreEstimate EstimateObjectCentre(const Dataset& dataset) {
     const Eigen::Vector4d& k = video.camera.intrinsics;
     for (const Frame& frame : video.frames) {
       if (frame.skip || frame.mask.empty()) continue;
-      double sx = 0, sy = 0;
-      long count = 0;
-      for (int y = 0; y < frame.mask.rows; ++y) {
-        const unsigned char* row = frame.mask.ptr<unsigned char>(y);
-        for (int x = 0; x < frame.mask.cols; ++x) {
-          if (row[x] != kMaskObject) continue;
-          sx += x + 0.5;
-          sy += y + 0.5;
-          ++count;
-        }
-      }
-      if (count == 0) continue;
+      const ObjectPixels p = FindObjectPixels(frame.mask);
+      if (p.count == 0) continue;
       const Eigen::Isometry3d camera_from_root = IsometryFromPose(frame.root_pose_init.data());
       const Eigen::Matrix3d root_from_camera = camera_from_root.linear().transpose();
       const Eigen::Vector3d o = -root_from_camera * camera_from_root.translation();
       const Eigen::Vector3d d =
           (root_from_camera *
-           Eigen::Vector3d((sx / count - k[2]) / k[0], (sy / count - k[3]) / k[1], 1.0))
+           Eigen::Vector3d((p.sx / p.count - k[2]) / k[0], (p.sy / p.count - k[3]) / k[1], 1.0))
               .normalized();
       if (!o.allFinite() || !d.allFinite()) continue;
       origins.push_back(o);

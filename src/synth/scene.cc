@@ -315,17 +315,6 @@ ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
 
 namespace {
 
-// The pose of a root frame whose origin is moved so that the old origin sits
-// at `offset`: x_new = x_old + offset, so camera_from_new =
-// camera_from_old * T(-offset) (SynthOptions::root_offset). No offset: the
-// pose as it is, bit for bit (no round trip through a rotation matrix).
-Pose OffsetRootFrame(const Pose& camera_from_root, const Eigen::Vector3d& offset) {
-  if (offset.isZero()) return camera_from_root;
-  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
-  shift.translation() = -offset;
-  return PoseFromIsometry(IsometryFromPose(camera_from_root.data()) * shift);
-}
-
 // Per-frame geometry kept for the second (shading / flow) pass.
 struct FrameGeometry {
   Eigen::Matrix3Xd vertices;  // camera coordinates
@@ -546,10 +535,12 @@ void RenderVideo(const FrameImaging& im, const ScenePlan& plan, int v,
     for (int f = begin; f < end; ++f) {
       Frame& frame = video.frames[f];
       frame.index = f;
+      // The root frame moved so that the old origin sits at root_offset:
+      // camera_from_new = camera_from_old * T(-root_offset).
       frame.root_pose_gt =
-          OffsetRootFrame(plan.frames[v][f].camera_from_root_gt, im.options.root_offset);
+          PoseWithOriginAt(plan.frames[v][f].camera_from_root_gt, -im.options.root_offset);
       frame.root_pose_init =
-          OffsetRootFrame(plan.frames[v][f].camera_from_root_init, im.options.root_offset);
+          PoseWithOriginAt(plan.frames[v][f].camera_from_root_init, -im.options.root_offset);
       RenderFrameImages(im, v, f, geometry[f], &frame);
       RenderFrameFlows(im, scene->dataset.flow_gaps, f, geometry, &frame);
     }

@@ -89,6 +89,10 @@ Pose PoseFromIsometry(const Eigen::Isometry3d& b_from_a);
 Eigen::Isometry3d IsometryFromPose(const double* b_from_a);
 // Pose from an angle-axis vector (radians) and a translation.
 Pose PoseFromAngleAxis(const Eigen::Vector3d& angle_axis, const Eigen::Vector3d& translation);
+// b_from_a * T(origin): the pose of frame a moved so that its origin is the
+// point `origin` of a (same rotation, translation t + R origin; the rotation
+// is copied, not round-tripped through a matrix).
+Pose PoseWithOriginAt(const Pose& b_from_a, const Eigen::Vector3d& origin);
 // Geodesic rotation angle between two poses' rotations, in radians.
 double RotationAngleBetween(const double* pose_a, const double* pose_b);
 

@@ -19,10 +19,6 @@ namespace banmo {
 // MLPs and bones initialised from options.
 std::unique_ptr<Model> MakeModelForDataset(const Dataset& dataset, const ModelOptions& options);
 
-// camera_from_root * T(origin): the pose of a frame whose origin is `origin`
-// in the root frame (same rotation, translation t + R origin).
-Pose ShiftedRootPose(const Pose& camera_from_root, const Eigen::Vector3d& origin);
-
 // Motion retargeting (paper Sec. 4.4): copies the shared parameters (canonical
 // fields, beta, rest bones) of `from` into `to`; `to` takes `from`'s scene
 // scale (its root translations are re-expressed in `from`'s model units) and
