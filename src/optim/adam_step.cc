@@ -2,8 +2,12 @@
 // each block's tangent space.
 #include <ceres/manifold.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
+#include <tuple>
 
+#include "banmo/optim/solver.h"
 #include "banmo/util/logging.h"
 #include "step_rules.h"
 
@@ -107,6 +111,55 @@ double LearningRate(const AdamConfig& a, int batch, int batches) {
   return lo + 0.5 * (a.lr - lo) * (1.0 + std::cos(M_PI * s));
 }
 
+namespace {
+
+// Adam's moments and step for one coordinate vector: returns the tangent
+// step for gradient g at learning rate lr.
+std::vector<double> AdamMove(const AdamConfig& a, const std::vector<double>& g, double lr,
+                             SolverState::Moments* mo) {
+  if (mo->m.empty()) {
+    mo->m.assign(g.size(), 0.0);
+    mo->v.assign(g.size(), 0.0);
+  }
+  CHECK_EQ(mo->m.size(), g.size()) << "Adam moments of another size";
+  ++mo->steps;
+  const double bc1 = 1.0 - std::pow(a.beta1, mo->steps);
+  const double bc2 = 1.0 - std::pow(a.beta2, mo->steps);
+  std::vector<double> delta(g.size());
+  for (size_t k = 0; k < g.size(); ++k) {
+    mo->m[k] = a.beta1 * mo->m[k] + (1.0 - a.beta1) * g[k];
+    mo->v[k] = a.beta2 * mo->v[k] + (1.0 - a.beta2) * g[k] * g[k];
+    delta[k] = -lr * (mo->m[k] / bc1) / (std::sqrt(mo->v[k] / bc2) + a.epsilon);
+  }
+  return delta;
+}
+
+// x <- x [+] delta through the block's manifold (or plain addition).
+void MoveBlock(const ceres::Manifold* manifold, int size, const double* delta, double* x) {
+  if (manifold == nullptr) {
+    for (int k = 0; k < size; ++k) x[k] += delta[k];
+    return;
+  }
+  std::vector<double> moved(size);
+  CHECK(manifold->Plus(x, delta, moved.data()));
+  std::copy(moved.begin(), moved.end(), x);
+}
+
+// One video's per-frame blocks of a group stepped in a temporal basis.
+struct BasisBlocks {
+  std::string moments_name;                      // "video3/bones_t_basis"
+  std::vector<double*> frames;                   // every frame's block, in frame order
+  std::vector<std::pair<int, size_t>> in_batch;  // (frame, offset in the gradient)
+};
+
+}  // namespace
+
+double TemporalBasisValue(int k, int t, int frames, int num_coefficients) {
+  const double K = num_coefficients;
+  if (k == 0) return 1.0 / std::sqrt(K);
+  return std::sqrt(2.0 / K) * std::cos(M_PI * k * (t + 0.5) / frames);
+}
+
 void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
               const std::function<void()>& after_gradient) {
   StageProblem& sp = *c.problem;
@@ -126,17 +179,39 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
   ceres::Problem& problem = sp.problem();
   const AdamConfig& a = c.stage->adam;
   const double lr = LearningRate(a, c.batch, c.stage->batches);
+
+  // Per-frame blocks whose group steps in a temporal basis: where each is.
+  std::map<const double*, BasisBlocks*> basis_of;
+  std::map<std::pair<ParameterGroup, int>, BasisBlocks> bases;
+  Model& model = sp.model();
+  for (const auto& [group, K, suffix] : {std::tuple<ParameterGroup, int, const char*>{
+                                             ParameterGroup::kBonesT, a.bone_basis, "bones_t"},
+                                         {ParameterGroup::kRoot, a.root_basis, "root_delta"}}) {
+    if (K <= 0 || (group == ParameterGroup::kBonesT && model.num_bones() == 0)) continue;
+    for (int v = 0; v < model.num_videos(); ++v) {
+      BasisBlocks& basis = bases[{group, v}];
+      basis.moments_name = "video" + std::to_string(v) + "/" + suffix + "_basis";
+      for (FrameParameters& f : model.video(v).frames) {
+        double* p = group == ParameterGroup::kBonesT ? f.bones_t.data() : f.root_delta.data();
+        basis.frames.push_back(p);
+        basis_of[p] = &basis;
+      }
+    }
+  }
+
   size_t offset = 0;
   for (double* p : blocks) {
     const ceres::Manifold* manifold = problem.GetManifold(p);
     const int size = problem.ParameterBlockSize(p);
     const int tangent = manifold != nullptr ? manifold->TangentSize() : size;
-    SolverState::Moments& mo = c.state->adam[c.block_names->at(p)];
-    if (mo.m.empty()) {
-      mo.m.assign(tangent, 0.0);
-      mo.v.assign(tangent, 0.0);
+    if (const auto found = basis_of.find(p); found != basis_of.end()) {
+      BasisBlocks& basis = *found->second;
+      const int t = static_cast<int>(std::find(basis.frames.begin(), basis.frames.end(), p) -
+                                     basis.frames.begin());
+      basis.in_batch.emplace_back(t, offset);
+      offset += tangent;
+      continue;
     }
-    ++mo.steps;
     const ParameterGroup group = sp.GroupOf(p);
     double scale = 1.0;
     if (group == ParameterGroup::kRoot) scale = a.pose_lr_scale;
@@ -144,28 +219,49 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
       scale = a.bone_lr_scale;
     }
     if (group == ParameterGroup::kLogBeta) scale = a.beta_lr_scale;
-    const double bc1 = 1.0 - std::pow(a.beta1, mo.steps);
-    const double bc2 = 1.0 - std::pow(a.beta2, mo.steps);
-    std::vector<double> delta(tangent);
-    for (int k = 0; k < tangent; ++k) {
-      const double g = gradient[offset + k];
-      mo.m[k] = a.beta1 * mo.m[k] + (1.0 - a.beta1) * g;
-      mo.v[k] = a.beta2 * mo.v[k] + (1.0 - a.beta2) * g * g;
-      delta[k] = -lr * scale * (mo.m[k] / bc1) / (std::sqrt(mo.v[k] / bc2) + a.epsilon);
-    }
+    const std::vector<double> delta = AdamMove(
+        a, std::vector<double>(gradient.begin() + offset, gradient.begin() + offset + tangent),
+        lr * scale, &c.state->adam[c.block_names->at(p)]);
     if (sp.IsMlpWeights(p) && a.weight_decay > 0) {
       for (int k = 0; k < size; ++k) p[k] -= lr * a.weight_decay * p[k];
     }
-    if (manifold != nullptr) {
-      std::vector<double> moved(size);
-      CHECK(manifold->Plus(p, delta.data(), moved.data()));
-      std::copy(moved.begin(), moved.end(), p);
-    } else {
-      for (int k = 0; k < size; ++k) p[k] += delta[k];
-    }
+    MoveBlock(manifold, size, delta.data(), p);
     offset += tangent;
   }
   CHECK_EQ(offset, gradient.size());
+
+  // The temporal bases: the coefficients' gradient is the chain rule through
+  // delta_t = sum_k phi_k(t) c_k (each frame's step in its own tangent
+  // space), Adam runs on the coefficients, and every frame of the video
+  // moves.
+  for (auto& [key, basis] : bases) {
+    if (basis.in_batch.empty()) continue;
+    const auto [group, v] = key;
+    const int frames = static_cast<int>(basis.frames.size());
+    const int K = std::min(frames, group == ParameterGroup::kBonesT ? a.bone_basis : a.root_basis);
+    const ceres::Manifold* manifold = problem.GetManifold(basis.frames[0]);
+    const int size = problem.ParameterBlockSize(basis.frames[0]);
+    const int tangent = manifold != nullptr ? manifold->TangentSize() : size;
+    std::vector<double> g(static_cast<size_t>(K) * tangent, 0.0);
+    for (const auto& [t, at] : basis.in_batch) {
+      for (int k = 0; k < K; ++k) {
+        const double phi = TemporalBasisValue(k, t, frames, K);
+        for (int i = 0; i < tangent; ++i) g[k * tangent + i] += phi * gradient[at + i];
+      }
+    }
+    const double scale = group == ParameterGroup::kRoot ? a.pose_lr_scale : a.bone_lr_scale;
+    const std::vector<double> coefficients =
+        AdamMove(a, g, lr * scale, &c.state->adam[basis.moments_name]);
+    std::vector<double> delta(tangent);
+    for (int t = 0; t < frames; ++t) {
+      std::fill(delta.begin(), delta.end(), 0.0);
+      for (int k = 0; k < K; ++k) {
+        const double phi = TemporalBasisValue(k, t, frames, K);
+        for (int i = 0; i < tangent; ++i) delta[i] += phi * coefficients[k * tangent + i];
+      }
+      MoveBlock(problem.GetManifold(basis.frames[t]), size, delta.data(), basis.frames[t]);
+    }
+  }
   batch.Invalidate();
 }
 

@@ -75,6 +75,8 @@ void VisitFields(V& v, AdamConfig& o) {
   v("pose_lr_scale", o.pose_lr_scale);
   v("bone_lr_scale", o.bone_lr_scale);
   v("beta_lr_scale", o.beta_lr_scale);
+  v("bone_basis", o.bone_basis);
+  v("root_basis", o.root_basis);
 }
 
 template <class V>
@@ -614,6 +616,8 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Positive(a + ".pose_lr_scale", s.adam.pose_lr_scale);
   c.Positive(a + ".bone_lr_scale", s.adam.bone_lr_scale);
   c.Positive(a + ".beta_lr_scale", s.adam.beta_lr_scale);
+  c.NonNegative(a + ".bone_basis", s.adam.bone_basis);
+  c.NonNegative(a + ".root_basis", s.adam.root_basis);
 
   const std::string m = p + ".lm";
   c.Positive(m + ".max_cg_iterations", s.lm.max_cg_iterations);

@@ -420,8 +420,17 @@ void Solver::Grow(int batch_index, const StageRun& run, StageProblem* sp, RunCon
                    bounds_, &c->state->rng, model_.get(), &remaps);
   event.stage = run.index;
   event.batch = batch_index;
-  for (auto& [name, moments] : c->state->adam) {
-    if (const TangentRemap* remap = remaps.For(name)) remap->Apply(&moments.m, &moments.v);
+  for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
+    // A temporal basis's coefficients span every bone of a video: their
+    // moments start again when the bones change (AdamConfig::bone_basis).
+    const bool basis =
+        m->first.size() > 6 && m->first.compare(m->first.size() - 6, 6, "_basis") == 0;
+    if (basis) {
+      m = c->state->adam.erase(m);
+      continue;
+    }
+    if (const TangentRemap* remap = remaps.For(m->first)) remap->Apply(&m->second.m, &m->second.v);
+    ++m;
   }
   NameBlocks(c);
   sp->AddModelBlocks();

@@ -30,6 +30,7 @@ class StageProblem {
   ~StageProblem();
 
   ceres::Problem& problem() { return *problem_; }
+  Model& model() { return model_; }
   RayBatch& batch() { return batch_; }
   const RayRobustLosses& ray_robust() const { return ray_robust_; }
   // Residual blocks of the minibatch that are not ray terms.

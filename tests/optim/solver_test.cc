@@ -97,6 +97,78 @@ TEST(Solver, RootCorrectionsAreHeldUntilTheirFraction) {
   EXPECT_GT(moved[3], 0.0);
 }
 
+// The temporal step basis with as many cosines as frames is the orthonormal
+// DCT-II: a change of coordinates, no loss of freedom. With fewer, a frame's
+// squared basis values still sum to about 1 (its step is about lr).
+TEST(TemporalBasis, CompleteBasisIsOrthonormalAndTruncatedKeepsTheStepSize) {
+  for (const int frames : {1, 6, 24, 30}) {
+    for (int i = 0; i < frames; ++i) {
+      for (int j = 0; j < frames; ++j) {
+        double dot = 0.0;
+        for (int t = 0; t < frames; ++t) {
+          dot +=
+              TemporalBasisValue(i, t, frames, frames) * TemporalBasisValue(j, t, frames, frames);
+        }
+        EXPECT_NEAR(dot, i == j ? 1.0 : 0.0, 1e-12) << frames << " frames, " << i << ", " << j;
+      }
+    }
+  }
+  double mean = 0.0;
+  for (int t = 0; t < 24; ++t) {
+    for (int k = 0; k < 8; ++k) mean += std::pow(TemporalBasisValue(k, t, 24, 8), 2) / 24;
+  }
+  EXPECT_NEAR(mean, 1.0, 1e-12);  // 1/K + (K-1)/K: each cosine's mean square is 1/2
+}
+
+// adam.bone_basis: one batch of rays from one frame moves every frame of
+// that video and none of the other video. With one coefficient (the mean)
+// every frame takes the same step, Adam's first step: lr per tangent
+// coordinate, so each bone translation moves by exactly lr.
+TEST(Solver, BoneBasisStepsEveryFrameOfTheSampledVideo) {
+  const Dataset& data = TinyDataset();
+  for (const int basis : {0, 1, 6}) {
+    SolverConfig config = TinyConfig(StepRule::kAdam, 1);
+    config.stages[0].adam.schedule = LrSchedule::kConstant;
+    config.stages[0].adam.bone_basis = basis;
+    config.stages[0].sampling.frames_per_batch = 1;
+    // No term reads another frame's bones (flow targets, neighbours).
+    config.stages[0].losses[LossTerm::kPoseSmoothness].weight = 0.0;
+    config.stages[0].losses[LossTerm::kFlow].weight = 0.0;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    const int B = solver.model().num_bones();
+    solver.Run(options_quiet());
+    const Model& m = solver.model();
+    std::vector<int> moved(2, 0);
+    int sampled_video = -1;
+    for (int v = 0; v < 2; ++v) {
+      for (int t = 0; t < 6; ++t) {
+        const std::vector<double>& bt = m.frame(v, t).bones_t;
+        bool identity = true;
+        for (int b = 0; b < B; ++b) {
+          identity = identity && bt[kPoseSize * b] == 1.0;
+          for (int k = 1; k < kPoseSize; ++k) identity = identity && bt[kPoseSize * b + k] == 0.0;
+        }
+        if (!identity) {
+          ++moved[v];
+          sampled_video = v;
+        }
+      }
+    }
+    ASSERT_GE(sampled_video, 0) << basis;
+    EXPECT_EQ(moved[1 - sampled_video], 0) << basis;
+    EXPECT_EQ(moved[sampled_video], basis == 0 ? 1 : 6) << basis;
+    if (basis != 1) continue;
+    const double lr = config.stages[0].adam.lr;
+    const std::vector<double>& first = m.frame(sampled_video, 0).bones_t;
+    for (int t = 1; t < 6; ++t) EXPECT_EQ(m.frame(sampled_video, t).bones_t, first) << t;
+    for (int b = 0; b < B; ++b) {
+      for (int k = 4; k < kPoseSize; ++k) {
+        EXPECT_NEAR(std::abs(first[kPoseSize * b + k]), lr, 1e-6 * lr) << b << ", " << k;
+      }
+    }
+  }
+}
+
 TEST(Solver, LmAndAlternateStepRulesRunAndStayFinite) {
   const Dataset& data = TinyDataset();
   for (const StepRule rule : {StepRule::kLm, StepRule::kAlternate}) {
@@ -251,6 +323,17 @@ TEST(Solver, RetargetingFitsPosesAndKeepsSharedParameters) {
   EXPECT_TRUE(r.stages[0].finite);
   EXPECT_EQ(0, std::memcmp(sdf.data(), retarget.model().sdf(), sizeof(double) * sdf.size()));
   EXPECT_NE(retarget.model().frame(0, 0).root_delta, root_before);
+}
+
+// The temporal bases' Adam moments are solver state: a resumed run with
+// both bases (stopped between, and across a bone re-initialisation, which
+// drops the bones' moments) equals the uninterrupted one.
+TEST(Solver, ResumeWithTemporalBasesIsBitwiseIdentical) {
+  SolverConfig config = TinyConfig(StepRule::kAdam, 6);
+  config.stages[0].adam.bone_basis = 3;
+  config.stages[0].adam.root_basis = 2;
+  config.stages[0].schedule.bone_reinit_at = {0.5};
+  ExpectResumeEqualsStraight(config, {2, 4}, "banmo_resume_basis_test");
 }
 
 // A checkpoint written exactly at a bone re-initialisation batch (before the

@@ -87,6 +87,13 @@ struct AdamConfig {
   // VolSDF's log beta: Adam moves a coordinate by about lr a step, so at
   // lr 2e-3 beta can shrink by at most a factor of about 2 over a stage.
   double beta_lr_scale = 1.0;
+  // Temporal bases of the per-frame steps (docs/solver.md, "Temporal step
+  // bases"): with K > 0, Adam steps each video's bone transforms (root
+  // corrections) in the coefficients of K cosines over the video's frames
+  // (min(K, frames); K >= frames is a complete basis), so every batch moves
+  // every frame of the videos it samples. 0: each frame's block on its own.
+  int bone_basis = 0;
+  int root_basis = 0;
 };
 
 struct LmConfig {

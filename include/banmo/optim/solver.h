@@ -40,6 +40,12 @@
 
 namespace banmo {
 
+// phi_k(t) of the temporal step bases (AdamConfig::bone_basis / root_basis):
+// the cosines of a DCT-II over `frames` frames, scaled so that
+// sum_k phi_k(t)^2 is about 1 for num_coefficients of them (exactly 1 when
+// num_coefficients == frames): a frame's step is about lr, as without a basis.
+double TemporalBasisValue(int k, int t, int frames, int num_coefficients);
+
 class RayBatch;
 class RaySampler;
 class StageProblem;
