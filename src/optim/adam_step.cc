@@ -152,6 +152,14 @@ struct BasisBlocks {
   std::vector<std::pair<int, size_t>> in_batch;  // (frame, offset in the gradient)
 };
 
+// The learning-rate multiplier of a group (AdamConfig's *_lr_scale).
+double LrScale(const AdamConfig& a, ParameterGroup group) {
+  if (group == ParameterGroup::kRoot) return a.pose_lr_scale;
+  if (group == ParameterGroup::kBones || group == ParameterGroup::kBonesT) return a.bone_lr_scale;
+  if (group == ParameterGroup::kLogBeta) return a.beta_lr_scale;
+  return 1.0;
+}
+
 }  // namespace
 
 double TemporalBasisValue(int k, int t, int frames, int num_coefficients) {
@@ -181,7 +189,7 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
   const double lr = LearningRate(a, c.batch, c.stage->batches);
 
   // Per-frame blocks whose group steps in a temporal basis: where each is.
-  std::map<const double*, BasisBlocks*> basis_of;
+  std::map<const double*, std::pair<BasisBlocks*, int>> basis_of;  // basis, frame
   std::map<std::pair<ParameterGroup, int>, BasisBlocks> bases;
   Model& model = sp.model();
   for (const auto& [group, K, suffix] : {std::tuple<ParameterGroup, int, const char*>{
@@ -193,8 +201,8 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
       basis.moments_name = "video" + std::to_string(v) + "/" + suffix + "_basis";
       for (FrameParameters& f : model.video(v).frames) {
         double* p = group == ParameterGroup::kBonesT ? f.bones_t.data() : f.root_delta.data();
+        basis_of[p] = {&basis, static_cast<int>(basis.frames.size())};
         basis.frames.push_back(p);
-        basis_of[p] = &basis;
       }
     }
   }
@@ -205,20 +213,12 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
     const int size = problem.ParameterBlockSize(p);
     const int tangent = manifold != nullptr ? manifold->TangentSize() : size;
     if (const auto found = basis_of.find(p); found != basis_of.end()) {
-      BasisBlocks& basis = *found->second;
-      const int t = static_cast<int>(std::find(basis.frames.begin(), basis.frames.end(), p) -
-                                     basis.frames.begin());
-      basis.in_batch.emplace_back(t, offset);
+      const auto [basis, t] = found->second;
+      basis->in_batch.emplace_back(t, offset);
       offset += tangent;
       continue;
     }
-    const ParameterGroup group = sp.GroupOf(p);
-    double scale = 1.0;
-    if (group == ParameterGroup::kRoot) scale = a.pose_lr_scale;
-    if (group == ParameterGroup::kBones || group == ParameterGroup::kBonesT) {
-      scale = a.bone_lr_scale;
-    }
-    if (group == ParameterGroup::kLogBeta) scale = a.beta_lr_scale;
+    const double scale = LrScale(a, sp.GroupOf(p));
     const std::vector<double> delta = AdamMove(
         a, std::vector<double>(gradient.begin() + offset, gradient.begin() + offset + tangent),
         lr * scale, &c.state->adam[c.block_names->at(p)]);
@@ -249,9 +249,8 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
         for (int i = 0; i < tangent; ++i) g[k * tangent + i] += phi * gradient[at + i];
       }
     }
-    const double scale = group == ParameterGroup::kRoot ? a.pose_lr_scale : a.bone_lr_scale;
     const std::vector<double> coefficients =
-        AdamMove(a, g, lr * scale, &c.state->adam[basis.moments_name]);
+        AdamMove(a, g, lr * LrScale(a, group), &c.state->adam[basis.moments_name]);
     std::vector<double> delta(tangent);
     for (int t = 0; t < frames; ++t) {
       std::fill(delta.begin(), delta.end(), 0.0);
