@@ -61,7 +61,7 @@ void TransferBoneMotion(int old_num_bones, const double* old_bones, const double
 
 void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bones,
                       const double* bones_t, const double* x, double* out, WarpJacobian* jacobian,
-                      const double* delta_logits) {
+                      const double* delta_logits, double jacobian_cutoff) {
   jacobian->d_x.setZero();
   jacobian->d_bones.setZero(3, kBoneSize * num_bones);
   jacobian->d_bones_t.setZero(3, kPoseSize * num_bones);
@@ -88,15 +88,15 @@ void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bone
   const Eigen::Vector3d blended = points * Eigen::Map<const Eigen::VectorXd>(w.data(), num_bones);
   std::copy(blended.data(), blended.data() + 3, out);
 
-  // Derivatives: every term of bone b is scaled by its weight w_b, so bones
-  // whose weight is below kNegligibleSkinningWeight contribute less than
-  // rounding and are skipped (their Jacobian columns stay zero).
+  // Derivatives: every term of bone b is scaled by its weight w_b; bones
+  // below the cutoff are skipped (their Jacobian columns stay zero).
+  const double cutoff = std::max(jacobian_cutoff, kNegligibleSkinningWeight);
   constexpr int kDim = 3 + kBoneSize + kPoseSize;  // Jets over [x, bone, bone_t]
   using J = ceres::Jet<double, kDim>;
   J xj[3];
   for (int k = 0; k < 3; ++k) xj[k] = J(x[k], k);
   for (int b = 0; b < num_bones; ++b) {
-    if (w[b] < kNegligibleSkinningWeight) continue;
+    if (w[b] < cutoff) continue;
     J bone[kBoneSize], pose[kPoseSize];
     for (int k = 0; k < kBoneSize; ++k) bone[k] = J(bones[kBoneSize * b + k], 3 + k);
     for (int k = 0; k < kPoseSize; ++k) {

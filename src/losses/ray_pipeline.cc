@@ -205,7 +205,7 @@ void RayPipeline::PlaceSamples() {
           }
           WarpWithJacobian(WarpDirection::kBackward, B, p.block[kBlockBones], p.block[kBlockBonesT],
                            s.x_root.col(i).data(), s.x_star.col(i).data(), &s.backward[i],
-                           bw_logits(s.field_offset + i));
+                           bw_logits(s.field_offset + i), options_.skinning_jacobian_cutoff);
         } else {
           SampleInRoot(root, p.root_init, intr, ray.uv.data(), depth, s.x_root.col(i).data());
           BackwardWarp(B, p.block[kBlockBones], p.block[kBlockBonesT], s.x_root.col(i).data(),
@@ -373,7 +373,7 @@ void RayPipeline::CompositeInputs(RayWork& w) {
       if (jacobians) {
         WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockPartnerBonesT],
                          s.x_star.col(i).data(), x_t2.data(), &flow_warp[i],
-                         fw_logits(s.fw_offset + i));
+                         fw_logits(s.fw_offset + i), options_.skinning_jacobian_cutoff);
         ProjectWithJacobian(p.block[kBlockPartnerRoot], p.partner_root_init, intr, x_t2.data(),
                             uv2.data(), &flow_proj[i]);
       } else {
@@ -395,7 +395,8 @@ void RayPipeline::CompositeInputs(RayWork& w) {
     Eigen::Vector2d uv_c;
     if (jacobians) {
       WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT], s.x_hat.data(),
-                       x_t.data(), &cycle_warp, fw_logits(s.fw_hat));
+                       x_t.data(), &cycle_warp, fw_logits(s.fw_hat),
+                       options_.skinning_jacobian_cutoff);
       ProjectWithJacobian(p.block[kBlockRoot], p.root_init, intr, x_t.data(), uv_c.data(),
                           &cycle_proj);
     } else {
@@ -606,7 +607,8 @@ void RayPipeline::Cycle3dSample(RayWork& w, int i, WarpJacobian* qj, Cycle3dJaco
   using J = JetN<kPointPoseIntrinsics>;
   Eigen::Vector3d q;
   WarpWithJacobian(WarpDirection::kForward, B, w.bones, p.block[kBlockBonesT],
-                   s.x_star.col(i).data(), q.data(), qj, fw_logits(s.fw_offset + i));
+                   s.x_star.col(i).data(), q.data(), qj, fw_logits(s.fw_offset + i),
+                   options_.skinning_jacobian_cutoff);
   J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
   SeedJets(q.data(), 3, 0, qj_jet);
   SeedJets(p.block[kBlockRoot], kPoseSize, 3, pose);

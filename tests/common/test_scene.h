@@ -33,6 +33,9 @@ struct TestSceneOptions {
   bool delta_skinning = false;
   double silhouette_weight = 1.0;  // every ray's Ray::silhouette_weight
   DensityModel density = DensityModel::kVolSdf;
+  // RayBatchOptions::skinning_jacobian_cutoff: 0 (exact) so the Jacobians
+  // equal the full-Jet reference to rounding.
+  double skinning_jacobian_cutoff = 0.0;
   uint32_t seed = 7;
   // The weights the golden values were generated with (not the config's
   // defaults): rgb, silhouette, flow, feature_match, cycle_2d, cycle_3d.

@@ -3,6 +3,7 @@
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -60,6 +61,79 @@ TEST(WarpWithJacobian, EqualsAutodiffTwin) {
         EXPECT_NEAR(jac.d_bones(r, c), out[r].v[3 + c], 1e-12);
       for (int c = 0; c < 3 * kPoseSize; ++c) {
         EXPECT_NEAR(jac.d_bones_t(r, c), out[r].v[3 + 3 * kBoneSize + c], 1e-12);
+      }
+    }
+  }
+}
+
+// With a cutoff, a bone whose weight at x is below it is left out of the
+// derivatives: its columns are zero, the kept bones' columns are still
+// exact, and d out / d x differs from the exact one by that bone's term
+// w_b ((p_b - out) dl_b/dx + dp_b/dx) exactly. The value blends every bone.
+TEST(WarpWithJacobian, CutoffLeavesOutOnlyTheFaintBonesTerms) {
+  constexpr int kBones = 3;
+  constexpr int kFaint = 2;
+  constexpr double kCutoff = 1e-4;
+  const double x[3] = {0.2, -0.1, 0.3};
+  for (WarpDirection dir : {WarpDirection::kBackward, WarpDirection::kForward}) {
+    Rig rig = RandomRig(kBones, 11, 0.4);
+    // Move the faint bone away from x until its weight is in [1e-8, 1e-5].
+    double weights[kBones];
+    for (double shift = 0.0; shift < 5.0; shift += 0.01) {
+      double* bone = rig.bones.data() + kBoneSize * kFaint;
+      bone[kBoneCenter + 0] = x[0] + 0.3 + shift;
+      double logits[kBones], point[3];
+      for (int b = 0; b < kBones; ++b) {
+        const double* rest = rig.bones.data() + kBoneSize * b;
+        const double* pose = rig.bones_t.data() + kPoseSize * b;
+        if (dir == WarpDirection::kBackward) {
+          BackwardBoneTerm(rest, pose, x, &logits[b], point);
+        } else {
+          ForwardBoneTerm(rest, pose, x, &logits[b], point);
+        }
+      }
+      SkinningWeights(kBones, logits, weights);
+      if (weights[kFaint] <= 1e-5) break;
+    }
+    ASSERT_LE(weights[kFaint], 1e-5);
+    ASSERT_GE(weights[kFaint], 1e-8);
+    for (int b = 0; b < kBones; ++b) {
+      if (b != kFaint) {
+        ASSERT_GE(weights[b], kCutoff);
+      }
+    }
+
+    double exact_value[3], cut_value[3];
+    WarpJacobian exact, cut;
+    WarpWithJacobian(dir, kBones, rig.bones.data(), rig.bones_t.data(), x, exact_value, &exact);
+    WarpWithJacobian(dir, kBones, rig.bones.data(), rig.bones_t.data(), x, cut_value, &cut, nullptr,
+                     kCutoff);
+    // The faint bone's own term, with Jets over x.
+    using J = ceres::Jet<double, 3>;
+    J xj[3], rest[kBoneSize], pose[kPoseSize], logit, p[3];
+    for (int k = 0; k < 3; ++k) xj[k] = J(x[k], k);
+    for (int k = 0; k < kBoneSize; ++k) rest[k] = J(rig.bones[kBoneSize * kFaint + k]);
+    for (int k = 0; k < kPoseSize; ++k) pose[k] = J(rig.bones_t[kPoseSize * kFaint + k]);
+    if (dir == WarpDirection::kBackward) {
+      BackwardBoneTerm(rest, pose, xj, &logit, p);
+    } else {
+      ForwardBoneTerm(rest, pose, xj, &logit, p);
+    }
+    for (int r = 0; r < 3; ++r) {
+      EXPECT_EQ(cut_value[r], exact_value[r]);
+      const double lever = p[r].a - exact_value[r];
+      for (int c = 0; c < 3; ++c) {
+        const double faint_term = weights[kFaint] * (lever * logit.v[c] + p[r].v[c]);
+        EXPECT_NEAR(cut.d_x(r, c) + faint_term, exact.d_x(r, c), 1e-12);
+        EXPECT_LT(std::abs(faint_term), 1e-3);  // a bone of weight <= 1e-5 at x
+      }
+      for (int c = 0; c < kBoneSize * kBones; ++c) {
+        const double expected = c / kBoneSize == kFaint ? 0.0 : exact.d_bones(r, c);
+        EXPECT_NEAR(cut.d_bones(r, c), expected, 1e-15) << c;
+      }
+      for (int c = 0; c < kPoseSize * kBones; ++c) {
+        const double expected = c / kPoseSize == kFaint ? 0.0 : exact.d_bones_t(r, c);
+        EXPECT_NEAR(cut.d_bones_t(r, c), expected, 1e-15) << c;
       }
     }
   }

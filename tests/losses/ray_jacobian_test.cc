@@ -4,12 +4,16 @@
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <memory>
 #include <string>
 
+#include "banmo/deform/bones.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
+#include "banmo/util/error.h"
 #include "common/test_scene.h"
 #include "jacobian_test_util.h"
 
@@ -339,6 +343,59 @@ TEST(RayBatch, FieldJacobiansOffKeepsEveryOtherBlock) {
       }
     }
   }
+}
+
+// The solver's default skinning-Jacobian cutoff (RayBatchOptions) leaves
+// out the derivatives of bones whose weight at a point is below it: with 12
+// small bones many samples have such bones, the residuals are unchanged and
+// every term's Jacobian stays within 1e-2 of its largest entry of the exact
+// one. Tolerance: a left-out bone's term is w_b ((p_b - out) dl_b + dp_b)
+// with w_b < 1e-4; near the cutoff its logit is about ln(1e4) = 9.2 below
+// the largest, so |dl_b/dx| is about sqrt(2 x 9.2) / s = 61 for these bones
+// of scale s = 0.07, and with |p_b - out| < 0.5 one bone moves an entry by
+// up to about 3e-3 (measured: at most 1.1e-3 here).
+TEST(RayBatch, SkinningJacobianCutoffChangesOnlyFaintBonesDerivatives) {
+  TestSceneOptions o;
+  o.num_bones = 12;
+  TestScene exact = MakeTestScene(o);
+  o.skinning_jacobian_cutoff = RayBatchOptions().skinning_jacobian_cutoff;
+  ASSERT_GT(o.skinning_jacobian_cutoff, 0.0);
+  TestScene cut = MakeTestScene(o);
+  // Small bones (scale ~0.07): skinning weights far below the cutoff at
+  // most samples for most bones.
+  for (TestScene* scene : {&exact, &cut}) {
+    Model& m = *scene->model;
+    for (int b = 0; b < m.num_bones(); ++b) {
+      for (int k = 0; k < 3; ++k) m.bones()[kBoneSize * b + kBoneLogScale + k] -= 1.5;
+    }
+    scene->batch->Invalidate();
+  }
+  double largest_difference = 0.0;
+  for (LossTerm term : RayTerms()) {
+    for (int r = 0; r < exact.batch->num_rays(); ++r) {
+      auto a = EvaluateCost(*exact.batch->MakeCostFunction(r, term),
+                            exact.batch->TermParameterBlocks(r, term));
+      auto b = EvaluateCost(*cut.batch->MakeCostFunction(r, term),
+                            cut.batch->TermParameterBlocks(r, term));
+      ASSERT_TRUE(a.ok && b.ok);
+      EXPECT_EQ(a.residuals, b.residuals) << LossTermName(term) << " ray " << r;
+      const double err = RelativeJacobianError(b, a);
+      EXPECT_LT(err, 1e-2) << LossTermName(term) << " ray " << r;
+      largest_difference = std::max(largest_difference, err);
+    }
+  }
+  EXPECT_GT(largest_difference, 0.0) << "the cutoff left out no bone: the test checks nothing";
+}
+
+TEST(RayBatchOptions, RejectsASkinningJacobianCutoffOutsideZeroToOne) {
+  for (double bad : {-1e-9, 1.0, std::nan("")}) {
+    RayBatchOptions o;
+    o.skinning_jacobian_cutoff = bad;
+    EXPECT_THROW(o.Check(), InputError) << bad;
+  }
+  RayBatchOptions o;
+  o.skinning_jacobian_cutoff = 0.0;
+  EXPECT_NO_THROW(o.Check());
 }
 
 INSTANTIATE_TEST_SUITE_P(AllTerms, DeltaSkinningJacobian, ::testing::ValuesIn(RayTerms()),

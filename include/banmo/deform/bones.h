@@ -149,14 +149,21 @@ struct WarpJacobian {
 enum class WarpDirection { kBackward, kForward };
 
 // Skinning weights below this contribute less than double rounding to a
-// warp's derivatives (every term of a bone is scaled by its weight) and are
-// skipped by WarpWithJacobian.
+// warp's derivatives (every term of a bone is scaled by its weight): the
+// smallest cutoff WarpWithJacobian applies.
 inline constexpr double kNegligibleSkinningWeight = 1e-16;
 
 // Evaluates the warp (as BackwardWarp / ForwardWarp) and its Jacobian.
+// Bones whose skinning weight at x is below max(jacobian_cutoff,
+// kNegligibleSkinningWeight) are left out of the derivatives (their columns
+// stay zero; the value still blends every bone). Every derivative term of
+// bone b is w_b ((p_b - out) dl_b + dp_b): the derivatives with respect to
+// the kept bones' blocks stay exact, and each left-out bone changes an entry
+// of d out / d x by w_b (|p_b - out| |dl_b/dx| + |dp_b/dx|) at most, less
+// than the cutoff times that bone's (bounded) derivative terms.
 void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bones,
                       const double* bones_t, const double* x, double* out, WarpJacobian* jacobian,
-                      const double* delta_logits = nullptr);
+                      const double* delta_logits = nullptr, double jacobian_cutoff = 0.0);
 
 // The weighted mean rotation of a frame's bone transforms, as a unit
 // quaternion [w, x, y, z]: the quaternions turned into the hemisphere of the

@@ -76,6 +76,15 @@ struct RayBatchOptions {
   RayLossWeights weights;           // per-term weights (0 = off)
   int match_top_k = 32;             // K of the truncated soft-argmax (Eq. 15)
   EmbeddingMatcherOptions matcher;  // temperature and search options
+  // Bones whose skinning weight at a point is below this are left out of the
+  // warps' derivatives there (WarpWithJacobian, deform/bones.h; residuals
+  // stay exact). At 1e-4 a left-out bone moves a Jacobian entry by less than
+  // 1e-4 times its own derivative terms (relative errors of 1e-3 on a test
+  // scene of small bones), far below a minibatch gradient's noise, and half
+  // or more of an 18-bone warp's per-bone derivative work is skipped
+  // (docs/solver.md, "Skinning Jacobian cutoff"). 0 = every bone down to
+  // double rounding, for exact Jacobian checks. In [0, 1).
+  double skinning_jacobian_cutoff = 1e-4;
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;
