@@ -1,6 +1,7 @@
 #include "banmo/deform/bones.h"
 
 #include <ceres/jet.h>
+#include <ceres/rotation.h>
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -9,6 +10,105 @@
 #include "banmo/util/logging.h"
 
 namespace banmo {
+namespace {
+
+using Matrix34d = Eigen::Matrix<double, 3, 4>;
+
+// out = R(q / |q|) v with d out / d v (the rotation matrix) and d out / d q
+// (Jets over the four quaternion coordinates only).
+void RotateWithJacobian(const double* q, const Eigen::Vector3d& v, Eigen::Vector3d* out,
+                        Eigen::Matrix3d* d_v, Matrix34d* d_q) {
+  using J = ceres::Jet<double, 4>;
+  J qj[4], vj[3], rj[3];
+  for (int k = 0; k < 4; ++k) qj[k] = J(q[k], k);
+  for (int k = 0; k < 3; ++k) vj[k] = J(v[k]);
+  ceres::QuaternionRotatePoint(qj, vj, rj);
+  for (int r = 0; r < 3; ++r) {
+    (*out)[r] = rj[r].a;
+    d_q->row(r) = rj[r].v.transpose();
+  }
+  double rotation[9];
+  ceres::QuaternionToRotation(q, rotation);  // row-major, q normalised
+  *d_v = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(rotation);
+}
+
+// As RotateWithJacobian for the conjugate rotation R(q)^T v, with d out / d q
+// with respect to q itself.
+void InverseRotateWithJacobian(const double* q, const Eigen::Vector3d& v, Eigen::Vector3d* out,
+                               Eigen::Matrix3d* d_v, Matrix34d* d_q) {
+  const double conj[4] = {q[0], -q[1], -q[2], -q[3]};
+  RotateWithJacobian(conj, v, out, d_v, d_q);
+  d_q->rightCols<3>() *= -1.0;
+}
+
+// Columns of a bone term's local Jacobians: [x (3), rest bone (kBoneSize),
+// bone transform (kPoseSize)].
+constexpr int kLocalX = 0;
+constexpr int kLocalBone = 3;
+constexpr int kLocalPose = 3 + kBoneSize;
+constexpr int kLocalDim = 3 + kBoneSize + kPoseSize;
+using LocalRow = Eigen::Matrix<double, 1, kLocalDim>;
+using LocalMatrix = Eigen::Matrix<double, 3, kLocalDim>;
+
+// d l_b(y) with respect to y and the rest bone's columns, l_b as BoneLogit:
+// d = R_b^T (y - c), l = -1/2 sum_k d_k^2 exp(-2 s_k).
+void BoneLogitJacobian(const double* bone, const Eigen::Vector3d& y, Eigen::Vector3d* d_y,
+                       LocalRow* d_local) {
+  const Eigen::Vector3d centre(bone + kBoneCenter);
+  Eigen::Vector3d d;
+  Eigen::Matrix3d d_d_e;
+  Matrix34d d_d_q;
+  InverseRotateWithJacobian(bone + kBoneQw, y - centre, &d, &d_d_e, &d_d_q);
+  Eigen::Vector3d g;  // dl / dd
+  for (int k = 0; k < 3; ++k) {
+    const double inv_s2 = std::exp(-2.0 * bone[kBoneLogScale + k]);
+    g[k] = -d[k] * inv_s2;
+    (*d_local)[kLocalBone + kBoneLogScale + k] = d[k] * d[k] * inv_s2;
+  }
+  *d_y = d_d_e.transpose() * g;
+  d_local->segment<3>(kLocalBone + kBoneCenter) = -d_y->transpose();
+  d_local->segment<4>(kLocalBone + kBoneQw) = g.transpose() * d_d_q;
+}
+
+// The hand-written Jacobian of one bone's term of the warp (BackwardBoneTerm
+// or ForwardBoneTerm): d logit and d point with respect to [x, bone,
+// bone_t]. Its autodiff twin is the Jet evaluation of the same templates
+// (tests/deform/bones_test.cc).
+void BoneTermJacobian(WarpDirection direction, const double* bone, const double* pose,
+                      const double* x, LocalRow* d_logit, LocalMatrix* d_point) {
+  d_logit->setZero();
+  d_point->setZero();
+  const Eigen::Vector3d xv(x);
+  Eigen::Vector3d d_y;
+  if (direction == WarpDirection::kBackward) {
+    // y = R^T (x - t); logit = l_b(y); point = y.
+    const Eigen::Vector3d t(pose + kPoseT);
+    Eigen::Vector3d y;
+    Eigen::Matrix3d y_u;
+    Matrix34d y_q;
+    InverseRotateWithJacobian(pose + kPoseQw, xv - t, &y, &y_u, &y_q);
+    BoneLogitJacobian(bone, y, &d_y, d_logit);
+    d_point->middleCols<3>(kLocalX) = y_u;
+    d_point->middleCols<4>(kLocalPose + kPoseQw) = y_q;
+    d_point->middleCols<3>(kLocalPose + kPoseT) = -y_u;
+    d_logit->segment<kPoseSize>(kLocalPose) =
+        d_y.transpose() * d_point->middleCols<kPoseSize>(kLocalPose);
+    d_logit->segment<3>(kLocalX) = d_y.transpose() * y_u;
+  } else {
+    // logit = l_b(x); point = R x + t.
+    BoneLogitJacobian(bone, xv, &d_y, d_logit);
+    d_logit->segment<3>(kLocalX) = d_y.transpose();
+    Eigen::Vector3d z;
+    Eigen::Matrix3d z_x;
+    Matrix34d z_q;
+    RotateWithJacobian(pose + kPoseQw, xv, &z, &z_x, &z_q);
+    d_point->middleCols<3>(kLocalX) = z_x;
+    d_point->middleCols<4>(kLocalPose + kPoseQw) = z_q;
+    d_point->middleCols<3>(kLocalPose + kPoseT).setIdentity();
+  }
+}
+
+}  // namespace
 
 void SkinningWeights(int num_bones, const double* logits, double* weights) {
   const double max_logit = *std::max_element(logits, logits + num_bones);
@@ -91,27 +191,14 @@ void WarpWithJacobian(WarpDirection direction, int num_bones, const double* bone
   // Derivatives: every term of bone b is scaled by its weight w_b; bones
   // below the cutoff are skipped (their Jacobian columns stay zero).
   const double cutoff = std::max(jacobian_cutoff, kNegligibleSkinningWeight);
-  constexpr int kDim = 3 + kBoneSize + kPoseSize;  // Jets over [x, bone, bone_t]
-  using J = ceres::Jet<double, kDim>;
-  J xj[3];
-  for (int k = 0; k < 3; ++k) xj[k] = J(x[k], k);
   for (int b = 0; b < num_bones; ++b) {
     if (w[b] < cutoff) continue;
-    J bone[kBoneSize], pose[kPoseSize];
-    for (int k = 0; k < kBoneSize; ++k) bone[k] = J(bones[kBoneSize * b + k], 3 + k);
-    for (int k = 0; k < kPoseSize; ++k) {
-      pose[k] = J(bones_t[kPoseSize * b + k], 3 + kBoneSize + k);
-    }
-    J logit, p[3];
-    if (direction == WarpDirection::kBackward) {
-      BackwardBoneTerm(bone, pose, xj, &logit, p);
-    } else {
-      ForwardBoneTerm(bone, pose, xj, &logit, p);
-    }
+    LocalRow logit;
+    LocalMatrix p;
+    BoneTermJacobian(direction, bones + kBoneSize * b, bones_t + kPoseSize * b, x, &logit, &p);
     // d out / d (locals of bone b) = w_b (p_b - out) dl_b + w_b dp_b.
-    Eigen::Matrix<double, 3, kDim> d_local;
     const Eigen::Vector3d lever = points.col(b) - blended;
-    for (int r = 0; r < 3; ++r) d_local.row(r) = w[b] * (lever[r] * logit.v + p[r].v).transpose();
+    const LocalMatrix d_local = w[b] * (lever * logit + p);
     jacobian->d_x += d_local.leftCols<3>();
     jacobian->d_bones.middleCols<kBoneSize>(kBoneSize * b) = d_local.middleCols<kBoneSize>(3);
     jacobian->d_bones_t.middleCols<kPoseSize>(kPoseSize * b) = d_local.rightCols<kPoseSize>();

@@ -33,34 +33,45 @@ Rig RandomRig(int B, uint32_t seed, double motion) {
   return rig;
 }
 
-// The hand-written blend Jacobian of WarpWithJacobian against its autodiff
-// twin: the templated warp with Jets over (x, all bones, all transforms).
+// The hand-written Jacobian of WarpWithJacobian (the blend and each bone's
+// term) against its autodiff twin: the templated warp with Jets over (x, all
+// bones, all transforms). Quaternions of unit norm and of norm 1.3 (the
+// warps normalise them; a solver step leaves them off the unit sphere
+// between manifold updates).
 TEST(WarpWithJacobian, EqualsAutodiffTwin) {
-  for (WarpDirection dir : {WarpDirection::kBackward, WarpDirection::kForward}) {
-    const Rig rig = RandomRig(3, 11, 0.4);
-    constexpr int kDim = 3 + 3 * kBoneSize + 3 * kPoseSize;  // 54 directions
-    using J = ceres::Jet<double, kDim>;
-    const double x[3] = {0.2, -0.1, 0.3};
-    J xj[3], bj[3 * kBoneSize], tj[3 * kPoseSize], out[3];
-    for (int k = 0; k < 3; ++k) xj[k] = J(x[k], k);
-    for (int k = 0; k < 3 * kBoneSize; ++k) bj[k] = J(rig.bones[k], 3 + k);
-    for (int k = 0; k < 3 * kPoseSize; ++k) tj[k] = J(rig.bones_t[k], 3 + 3 * kBoneSize + k);
-    if (dir == WarpDirection::kBackward) {
-      BackwardWarp(3, bj, tj, xj, out);
-    } else {
-      ForwardWarp(3, bj, tj, xj, out);
-    }
-    double value[3];
-    WarpJacobian jac;
-    WarpWithJacobian(dir, 3, rig.bones.data(), rig.bones_t.data(), x, value, &jac);
-    for (int r = 0; r < 3; ++r) {
-      EXPECT_NEAR(value[r], out[r].a, 1e-14);
-      // Exact derivatives both ways; 1e-12 absolute on O(1) entries.
-      for (int c = 0; c < 3; ++c) EXPECT_NEAR(jac.d_x(r, c), out[r].v[c], 1e-12);
-      for (int c = 0; c < 3 * kBoneSize; ++c)
-        EXPECT_NEAR(jac.d_bones(r, c), out[r].v[3 + c], 1e-12);
-      for (int c = 0; c < 3 * kPoseSize; ++c) {
-        EXPECT_NEAR(jac.d_bones_t(r, c), out[r].v[3 + 3 * kBoneSize + c], 1e-12);
+  for (const double quaternion_norm : {1.0, 1.3}) {
+    for (WarpDirection dir : {WarpDirection::kBackward, WarpDirection::kForward}) {
+      Rig rig = RandomRig(3, 11, 0.4);
+      for (int b = 0; b < 3; ++b) {
+        for (int k = 0; k < 4; ++k) {
+          rig.bones[kBoneSize * b + kBoneQw + k] *= quaternion_norm;
+          rig.bones_t[kPoseSize * b + kPoseQw + k] *= quaternion_norm;
+        }
+      }
+      constexpr int kDim = 3 + 3 * kBoneSize + 3 * kPoseSize;  // 54 directions
+      using J = ceres::Jet<double, kDim>;
+      const double x[3] = {0.2, -0.1, 0.3};
+      J xj[3], bj[3 * kBoneSize], tj[3 * kPoseSize], out[3];
+      for (int k = 0; k < 3; ++k) xj[k] = J(x[k], k);
+      for (int k = 0; k < 3 * kBoneSize; ++k) bj[k] = J(rig.bones[k], 3 + k);
+      for (int k = 0; k < 3 * kPoseSize; ++k) tj[k] = J(rig.bones_t[k], 3 + 3 * kBoneSize + k);
+      if (dir == WarpDirection::kBackward) {
+        BackwardWarp(3, bj, tj, xj, out);
+      } else {
+        ForwardWarp(3, bj, tj, xj, out);
+      }
+      double value[3];
+      WarpJacobian jac;
+      WarpWithJacobian(dir, 3, rig.bones.data(), rig.bones_t.data(), x, value, &jac);
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_NEAR(value[r], out[r].a, 1e-14);
+        // Exact derivatives both ways; 1e-12 absolute on O(1) entries.
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(jac.d_x(r, c), out[r].v[c], 1e-12);
+        for (int c = 0; c < 3 * kBoneSize; ++c)
+          EXPECT_NEAR(jac.d_bones(r, c), out[r].v[3 + c], 1e-12);
+        for (int c = 0; c < 3 * kPoseSize; ++c) {
+          EXPECT_NEAR(jac.d_bones_t(r, c), out[r].v[3 + 3 * kBoneSize + c], 1e-12);
+        }
       }
     }
   }
