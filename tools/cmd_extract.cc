@@ -58,8 +58,12 @@ int RunExtract(int argc, char** argv) {
   app.add_option("--color-video", options.color_video,
                  "Appearance code of this video for the vertex colours (-1 = zero code)")
       ->capture_default_str();
+  app.add_option("--min-component-fraction", options.min_component_fraction,
+                 "Keep the connected components with at least this fraction of the largest "
+                 "one's faces (1 = the largest only)")
+      ->capture_default_str();
   app.add_flag("--all-components", all_components,
-               "Keep every connected component (default: the largest only)");
+               "Keep every connected component (--min-component-fraction 0)");
   app.add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -70,7 +74,7 @@ int RunExtract(int argc, char** argv) {
     box = tools::ParseBoxOption("--bounds", bounds,
                                 "'model' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
   }
-  options.keep_largest_component = !all_components;
+  if (all_components) options.min_component_fraction = 0.0;
 
   Timer total;
   const std::unique_ptr<Model> model = LoadModel(model_dir);

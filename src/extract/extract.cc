@@ -110,6 +110,10 @@ void ExtractOptions::Check() const {
   if (!(bone_ellipsoid_sigmas > 0) || !std::isfinite(bone_ellipsoid_sigmas)) {
     ThrowInputError("extract.bone_ellipsoid_sigmas: expected a finite value > 0");
   }
+  if (!(min_component_fraction >= 0.0 && min_component_fraction <= 1.0)) {
+    ThrowInputError("extract.min_component_fraction: expected a number in [0, 1], got ",
+                    min_component_fraction);
+  }
   if (bone_ellipsoid_subdivisions < 0 || bone_ellipsoid_subdivisions > 4) {
     ThrowInputError("extract.bone_ellipsoid_subdivisions: expected 0..4, got ",
                     bone_ellipsoid_subdivisions);
@@ -215,7 +219,7 @@ TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& opti
                                   MarchingCubesStats* stats) {
   options.Check();
   TriangleMesh mesh = MarchingCubes(ModelSdfFunction(model), options.grid, stats);
-  if (options.keep_largest_component) mesh = KeepLargestComponent(mesh);
+  mesh = KeepLargeComponents(mesh, options.min_component_fraction);
   if (mesh.NumVertices() > 0)
     mesh.colors = CanonicalColors(model, mesh.vertices, options.color_video);
   return mesh;
@@ -448,8 +452,7 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
        << "  \"scene_scale\": " << s << ",\n"
        << "  \"iso_level\": " << options.grid.iso_level << ",\n"
        << "  \"close_at_bounds\": " << (options.grid.close_at_bounds ? "true" : "false") << ",\n"
-       << "  \"keep_largest_component\": " << (options.keep_largest_component ? "true" : "false")
-       << ",\n"
+       << "  \"min_component_fraction\": " << options.min_component_fraction << ",\n"
        << "  \"color_video\": " << options.color_video << ",\n"
        << "  \"num_bones\": " << B << ",\n"
        << "  \"canonical_vertices\": " << summary.canonical_vertices << ",\n"

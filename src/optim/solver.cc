@@ -454,6 +454,7 @@ void Solver::ReinitializeBones(bool keep_motion, SolverState* state) {
   const int B = model.num_bones();
   ExtractOptions options;
   options.grid.resolution = 48;
+  options.min_component_fraction = 1.0;  // bone sites on the largest component
   options.grid.bounds_min = bounds_.min();
   options.grid.bounds_max = bounds_.max();
   TriangleMesh mesh;

@@ -164,6 +164,8 @@ TEST_F(ExtractCli, BadInputsExitWithTwoAndWriteNothing) {
       {model + out_arg + " --bounds 0,0,0,1,x,1", "--bounds"},
       {model + out_arg + " --resolution 1", "resolution"},
       {model + out_arg + " --coarse-stride 0", "coarse_stride"},
+      {model + out_arg + " --min-component-fraction 1.5", "min_component_fraction"},
+      {model + out_arg + " --min-component-fraction -0.1", "min_component_fraction"},
       {model + out_arg + " --bounds 2,2,2,3,3,3", "no zero crossing"},
   };
   for (const Case& c : cases) {

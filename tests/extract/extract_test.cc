@@ -402,6 +402,11 @@ TEST(WriteExtraction, NoSurfaceIsAnErrorAndWritesNothing) {
   options.bone_ellipsoid_sigmas = 0.0;
   EXPECT_THROW(WriteExtraction(*model, options, dir), InputError);
   options = Quick(8);
+  options.min_component_fraction = 1.01;
+  EXPECT_THROW(WriteExtraction(*model, options, dir), InputError);
+  options.min_component_fraction = std::nan("");
+  EXPECT_THROW(WriteExtraction(*model, options, dir), InputError);
+  options = Quick(8);
   options.frames.all = false;
   options.frames.frames = {{0, 7}};
   EXPECT_THROW(WriteExtraction(*model, options, dir), InputError);

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "banmo/extract/extract.h"
 #include "banmo/util/error.h"
 #include "mesh_test_util.h"
 
@@ -188,6 +189,47 @@ TEST(MarchingCubes, TwoSpheresAndLargestComponent) {
     ASSERT_EQ(big.colors(0, i), 10);
   }
   EXPECT_NEAR(sb.signed_volume, 4.0 / 3.0 * M_PI * std::pow(0.35, 3), 0.02 * 0.18);
+}
+
+// A body, a detached part (about a tenth of the body's faces, like a wing
+// or leg the zero level set separates from it) and a floater (a speck of a
+// few faces, under 0.1 %): KeepLargeComponents keeps the components at or
+// above the fraction.
+TEST(MarchingCubes, LargeComponentsKeepDetachedPartsAndDropFloaters) {
+  // The floater's centre is a grid node (-1 + 104 * 2 / 128), so it has a
+  // node inside however small it is.
+  const Eigen::Vector3d body(-0.3, 0, 0), part(0.6, 0, 0), floater(0.625, 0.625, 0.625);
+  auto three = [&](const Eigen::Matrix3Xd& x, Eigen::VectorXd* f) {
+    Eigen::VectorXd a, b, c;
+    SphereSdf(body, 0.6)(x, &a);
+    SphereSdf(part, 0.2)(x, &b);
+    SphereSdf(floater, 0.012)(x, &c);
+    *f = a.cwiseMin(b).cwiseMin(c);
+  };
+  const TriangleMesh mesh = MarchingCubes(three, Grid(128));
+  ASSERT_EQ(ComputeMeshStats(mesh).num_components, 3);
+  auto components = [](const TriangleMesh& m) { return ComputeMeshStats(m).num_components; };
+  // Faces scale with the area: the part has about (0.2 / 0.6)^2 = 11 % of
+  // the body's, the floater a handful of faces (a sphere under a cell).
+  EXPECT_EQ(components(KeepLargeComponents(mesh, 0.0)), 3);
+  EXPECT_EQ(KeepLargeComponents(mesh, 0.0).NumFaces(), mesh.NumFaces());
+  const TriangleMesh kept = KeepLargeComponents(mesh, kDefaultMinComponentFraction);
+  EXPECT_EQ(components(kept), 2);
+  EXPECT_EQ(components(KeepLargeComponents(mesh, 0.01)), 2);
+  EXPECT_EQ(components(KeepLargeComponents(mesh, 0.05)), 2);
+  EXPECT_EQ(components(KeepLargeComponents(mesh, 0.2)), 1);
+  const TriangleMesh largest = KeepLargestComponent(mesh);
+  const TriangleMesh one = KeepLargeComponents(mesh, 1.0);
+  EXPECT_EQ(one.faces, largest.faces);
+  EXPECT_EQ(one.vertices, largest.vertices);
+  // The default keeps body and part whole: every kept vertex lies on one of
+  // the two spheres (within a cell), none near the floater.
+  for (int i = 0; i < kept.NumVertices(); ++i) {
+    const Eigen::Vector3d v = kept.vertices.col(i);
+    const double d = std::min(std::abs((v - body).norm() - 0.6), std::abs((v - part).norm() - 0.2));
+    ASSERT_LT(d, 2.0 / 128) << v.transpose();
+  }
+  EXPECT_EQ(KeepLargeComponents(TriangleMesh(), 0.5).NumFaces(), 0);
 }
 
 TEST(MarchingCubes, SurfaceLeavingTheBoxIsCappedOrOpen) {

@@ -55,6 +55,14 @@ struct FrameSelection {
 FrameSelection ParseFrameSelection(const std::string& text, const Model& model,
                                    const std::string& flag = "--frames");
 
+// Default of ExtractOptions::min_component_fraction: the parts of the
+// trained models measured that the zero level set separates from the body
+// (a wing, legs) are 0.2-14 % of the largest component's faces, and keeping
+// every component above 0.1 % scored better on the Fox than 1 % or the
+// largest alone; what it drops are specks of a few faces (benchmarks/README.md,
+// "Stage 3 and detached parts").
+inline constexpr double kDefaultMinComponentFraction = 0.001;
+
 struct ExtractOptions {
   // Grid, level, capping at the bounds and batch size of the SDF sampling.
   // resolution: 256 for final meshes, 64-128 for quick looks.
@@ -63,8 +71,12 @@ struct ExtractOptions {
     g.resolution = 256;
     return g;
   }();
-  // Keep only the connected component with the most faces (drops floaters).
-  bool keep_largest_component = true;
+  // Connected components kept: those with at least this fraction of the
+  // largest one's faces ([0, 1]; 0 keeps every component, 1 only the
+  // largest). Drops floaters but keeps parts the zero level set separates
+  // from the body at this resolution, such as thin legs or a wing
+  // (kDefaultMinComponentFraction, docs/extract.md "Components").
+  double min_component_fraction = kDefaultMinComponentFraction;
   // Appearance code used for the vertex colours: that video's code, or the
   // zero code when -1 or when the model has no such video (>= -1). Colours
   // use the view direction (0, 0, 1) in canonical coordinates.
@@ -149,7 +161,9 @@ ExtractionSummary WriteExtraction(
 // Axis-aligned bounds of the model's surface from a coarse extraction
 // (resolution cells on the longest axis of `bounds`, largest component), for
 // the solver's canonical-bounds refresh. Returns an empty box if the level set
-// does not cross the grid.
+// does not cross the grid. (Keeping the smaller components here too was
+// measured and not kept: benchmarks/README.md, "Stage 3 and detached
+// parts".)
 Eigen::AlignedBox3d SurfaceBounds(const Model& model, const Eigen::AlignedBox3d& bounds,
                                   int resolution = 48);
 

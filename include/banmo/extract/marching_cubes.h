@@ -107,6 +107,12 @@ TriangleMesh MarchingCubes(const FieldBatchFunction& field, const GridOptions& o
 // the component containing the lowest face index.
 TriangleMesh KeepLargestComponent(const TriangleMesh& mesh);
 
+// Keeps every connected component with at least min_fraction times the faces
+// of the largest one (min_fraction in [0, 1]; 0 keeps all, 1 is
+// KeepLargestComponent), and drops unreferenced vertices. Faces keep their
+// order, colours follow their vertices.
+TriangleMesh KeepLargeComponents(const TriangleMesh& mesh, double min_fraction);
+
 // Drops vertices no face references (colours follow), keeping the order.
 TriangleMesh RemoveUnreferencedVertices(const TriangleMesh& mesh);
 
