@@ -22,7 +22,8 @@ namespace {
 int RunExtract(int argc, char** argv) {
   CLI::App app{
       "Extract meshes from a model checkpoint (docs/extract.md): marching cubes of the SDF zero "
-      "level set (largest component) with vertex colours, articulated per-frame meshes in each "
+      "level set (every component with at least --min-component-fraction of the largest one's "
+      "faces) with vertex colours, articulated per-frame meshes in each "
       "frame's camera coordinates (OUT/frames, ready for `banmo eval --pred OUT/frames`), bone "
       "ellipsoids, the mesh coloured by dominant bone and per-vertex skinning weights.",
       "banmo extract"};
