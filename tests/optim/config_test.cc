@@ -128,7 +128,7 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   // Stage 3: importance depth + active sampling, root poses fixed.
   const StageConfig& s3 = c.stages[2];
   EXPECT_TRUE(s3.sampling.importance_depth);
-  EXPECT_EQ(s3.sampling.active_fraction, 0.25);
+  EXPECT_EQ(s3.sampling.active_fraction, 0.1);
   EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), G::kRoot), s3.constant.end());
   // The defaults block reached every stage.
   for (const StageConfig& s : c.stages) {
