@@ -29,8 +29,8 @@ void PrintNotes(const Dataset& dataset) {
   for (const Video& v : dataset.videos) {
     if (!v.present.features) {
       std::printf(
-          "note: video %s has no pixel features: the feature_match and cycle_2d losses "
-          "get no residuals there\n",
+          "note: video %s has no pixel features: the feature_match, cycle_2d and "
+          "feature_render losses get no residuals there\n",
           v.name.c_str());
     }
     bool all_same = v.frames.size() > 1;

@@ -31,6 +31,9 @@ TestSceneOptions BenchmarkScene(int width, int num_rays, bool delta_skinning) {
   o.num_samples = 32;
   o.grid_points = 1024;
   o.match_top_k = 16;
+  // The terms of the recorded numbers (benchmarks/README.md): feature_render
+  // (added 2026-11-27, 16 rows per ray) stays off so they remain comparable.
+  o.weights[LossTerm::kFeatureRender] = 0.0;
   return o;
 }
 

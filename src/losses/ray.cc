@@ -1,5 +1,7 @@
 #include "banmo/losses/ray.h"
 
+#include "banmo/field/canonical_field.h"
+#include "banmo/field/embedding_match.h"
 #include "banmo/losses/bone_inside_loss.h"
 #include "banmo/losses/eikonal_loss.h"
 #include "banmo/losses/pose_smoothness_loss.h"
@@ -15,6 +17,9 @@ static_assert(LossInfo(LossTerm::kSilhouette).residuals == SilhouetteLoss::kNumR
 static_assert(LossInfo(LossTerm::kFlow).residuals == FlowLoss::kNumResiduals);
 static_assert(LossInfo(LossTerm::kFeatureMatch).residuals == FeatureMatchLoss::kNumResiduals);
 static_assert(LossInfo(LossTerm::kCycle2d).residuals == Cycle2dLoss::kNumResiduals);
+static_assert(LossInfo(LossTerm::kFeatureRender).residuals == FeatureRenderLoss::kNumResiduals);
+static_assert(CompositeLocals::kEmbeddingDim == CanonicalField::EmbeddingDim() &&
+              CompositeLocals::kEmbeddingDim == kEmbeddingFeatureDim);
 static_assert(LossInfo(LossTerm::kCycle3d).residuals == Cycle3dLoss::kNumResiduals);
 static_assert(LossInfo(LossTerm::kEikonal).residuals == EikonalLoss::kNumResiduals);
 static_assert(LossInfo(LossTerm::kBoneInside).residuals == BoneInsideLoss::kNumResiduals);
@@ -58,6 +63,7 @@ CompositeLocals CompositeLocals::For(const Ray& ray, const RayLossWeights& weigh
   l.has_displacement = ray.HasTerm(LossTerm::kFlow, weights);
   l.has_matched = ray.HasTerm(LossTerm::kFeatureMatch, weights);
   l.has_cycle = ray.HasTerm(LossTerm::kCycle2d, weights);
+  l.has_embedding = ray.HasTerm(LossTerm::kFeatureRender, weights);
   int offset = 0;
   l.sdf = offset;
   offset += n;
@@ -73,6 +79,8 @@ CompositeLocals CompositeLocals::For(const Ray& ray, const RayLossWeights& weigh
   if (l.has_matched) offset += 3;
   l.cycle_projection = offset;
   if (l.has_cycle) offset += 2;
+  l.embedding = offset;
+  if (l.has_embedding) offset += kEmbeddingDim * n;
   l.size = offset;
   return l;
 }

@@ -106,6 +106,7 @@ void RayPipeline::Layout() {
   scratch.assign(num_rays, RayScratch());
   field_groups.assign(num_rays + 1, 0);
   match_groups.assign(num_rays + 1, 0);
+  emb_groups.assign(num_rays + 1, 0);
   fw_groups.assign(num_rays + 1, 0);
   for (int r = 0; r < num_rays; ++r) {
     const Ray& ray = *rays[r];
@@ -122,6 +123,9 @@ void RayPipeline::Layout() {
     s.num_match = match ? static_cast<int>(ray.match_indices.size()) : 0;
     s.match_offset = match_groups[r];
     match_groups[r + 1] = match_groups[r] + s.num_match;
+    s.num_emb = ray.HasTerm(LossTerm::kFeatureRender, weights) ? s.num_samples : 0;
+    s.emb_offset = emb_groups[r];
+    emb_groups[r + 1] = emb_groups[r] + s.num_emb;
     s.fw_offset = fw_groups[r];
     int fw_count = 0;
     if (delta != nullptr) {
@@ -135,6 +139,7 @@ void RayPipeline::Layout() {
   }
   total_samples = field_groups[num_rays];
   total_match = match_groups[num_rays];
+  total_emb = emb_groups[num_rays];
   total_fw = fw_groups[num_rays];
 }
 
@@ -237,10 +242,19 @@ void RayPipeline::PlaceSamples() {
 }
 
 // Pass 2 (batched): canonical fields at all samples; embeddings at the
-// rays' match candidates and the soft-argmax X_hat* (Eq. 15); MLP_Delta at
-// the points the forward warps push.
+// samples of rays with the rendered embedding, at the rays' match
+// candidates and the soft-argmax X_hat* (Eq. 15); MLP_Delta at the points
+// the forward warps push.
 void RayPipeline::EvaluateFields() {
   field.ForwardBatch(sdf_params, color_params, &fb, jacobians);
+  if (total_emb > 0) {
+    sb.x.resize(3, total_emb);
+    for (int r = 0; r < num_rays; ++r) {
+      const RayScratch& s = scratch[r];
+      if (s.num_emb > 0) sb.x.middleCols(s.emb_offset, s.num_emb) = s.x_star;
+    }
+    field.ForwardEmbeddingBatch(embedding_params, &sb, jacobians);
+  }
   if (total_match > 0) {
     eb.x.resize(3, total_match);
     for (int r = 0; r < num_rays; ++r) {
@@ -389,6 +403,12 @@ void RayPipeline::CompositeInputs(RayWork& w) {
   if (L.has_matched) {
     for (int c = 0; c < 3; ++c) u[L.matched + c] = s.x_hat[c];
   }
+  if (L.has_embedding) {
+    constexpr int E = CompositeLocals::kEmbeddingDim;
+    for (int i = 0; i < n; ++i) {
+      for (int c = 0; c < E; ++c) u[L.embedding + E * i + c] = sb.psi(c, s.emb_offset + i);
+    }
+  }
   // 2D cycle: X_hat* pushed forward to t and projected (Eq. 18).
   if (L.has_cycle) {
     Eigen::Vector3d x_t;
@@ -515,6 +535,7 @@ void RayPipeline::ReverseComposite(RayWork& w) {
   s.a_sdf = RowMajorMatrix::Zero(Rc, n);
   s.a_rgb = RowMajorMatrix::Zero(Rc, 3 * n);
   s.a_xhat = RowMajorMatrix::Zero(Rc, 3);
+  s.a_psi = RowMajorMatrix::Zero(Rc, s.num_emb * CompositeLocals::kEmbeddingDim);
   if (delta != nullptr) {
     // Gradient mode: one cotangent row shared by the composite and 3D-cycle terms.
     const int rows = gradient ? 1 : Rc;
@@ -532,12 +553,18 @@ void RayPipeline::ReverseComposite(RayWork& w) {
       a_xstar += D.middleCols(L.canonical, 3 * n);
       s.a_xhat += D.middleCols(L.matched, 3);
     }
+    if (L.has_embedding) s.a_psi = D.middleCols(L.embedding, s.a_psi.cols());
     jac[kBlockLogBeta].topRows(Rc).col(0) += D.col(L.log_beta);
   }
   // Field inputs: X*_i, view direction, appearance code.
   for (int i = 0; i < n && Rc > 0; ++i) {
     const int col = s.field_offset + i;
     a_xstar.middleCols<3>(3 * i).noalias() += s.a_sdf.col(i) * fb.dsdf_dx.col(col).transpose();
+    if (L.has_embedding) {
+      constexpr int E = CompositeLocals::kEmbeddingDim;
+      a_xstar.middleCols<3>(3 * i).noalias() +=
+          s.a_psi.middleCols<E>(E * i) * sb.dpsi_dx.middleCols<3>(3 * (s.emb_offset + i));
+    }
     if (L.has_rgb) {
       const auto a_rgb_i = s.a_rgb.middleCols<3>(3 * i);
       a_xstar.middleCols<3>(3 * i).noalias() += a_rgb_i * fb.drgb_dx.middleCols<3>(3 * col);
@@ -743,6 +770,17 @@ void RayPipeline::MlpGradient() {
                                  &d_embedding_params);
     (*mlp_gradient)[2] = d_embedding_params.col(0);
   }
+  if (total_emb > 0) {
+    Eigen::MatrixXd d_psi = Eigen::MatrixXd::Zero(kEmbeddingFeatureDim, total_emb);
+    for (int r = 0; r < num_rays; ++r) {
+      const RayScratch& s = scratch[r];
+      if (s.composite_rows == 0 || s.num_emb == 0) continue;
+      d_psi.middleCols(s.emb_offset, s.num_emb) =
+          Eigen::Map<const Eigen::MatrixXd>(s.a_psi.row(0).data(), kEmbeddingFeatureDim, s.num_emb);
+    }
+    field.BackwardEmbeddingBatch(embedding_params, sb, d_psi, {0, total_emb}, &d_embedding_params);
+    (*mlp_gradient)[2] += d_embedding_params.col(0);
+  }
   if (delta != nullptr) {
     Eigen::MatrixXd d_bw, d_fw, g;
     GatherDeltaAdjoints(scratch, fw_groups, B, 0, &d_bw, &d_fw, nullptr);
@@ -764,11 +802,13 @@ void RayPipeline::MlpJacobians() {
   Eigen::Matrix3Xd d_rgb(3, total_samples);
   Eigen::MatrixXd d_sdf_params, d_color_params, d_embedding_params;
   Eigen::MatrixXd d_psi(kEmbeddingFeatureDim, total_match);
+  Eigen::MatrixXd d_psi_samples(kEmbeddingFeatureDim, total_emb);
   for (int k = 0; k < max_rows; ++k) {
     d_sdf.setZero();
     d_rgb.setZero();
     bool any_field = false;
     bool any_match = false;
+    bool any_emb = false;
     for (int r = 0; r < num_rays; ++r) {
       const RayScratch& s = scratch[r];
       if (k >= s.composite_rows) continue;
@@ -778,6 +818,7 @@ void RayPipeline::MlpJacobians() {
       }
       any_field = any_field || s.a_sdf.row(k).squaredNorm() > 0 || s.a_rgb.row(k).squaredNorm() > 0;
       any_match = any_match || (s.num_match > 0 && s.a_xhat.row(k).squaredNorm() > 0);
+      any_emb = any_emb || (s.num_emb > 0 && s.a_psi.row(k).squaredNorm() > 0);
     }
     if (any_field) {
       field.BackwardBatch(sdf_params, color_params, fb, d_sdf, d_rgb, field_groups, &d_sdf_params,
@@ -805,6 +846,21 @@ void RayPipeline::MlpJacobians() {
       for (int r = 0; r < num_rays; ++r) {
         if (k >= scratch[r].composite_rows || scratch[r].num_match == 0) continue;
         (*out)[r].jacobians[kBlockEmbedding].row(k) = d_embedding_params.col(r).transpose();
+      }
+    }
+    if (any_emb) {
+      d_psi_samples.setZero();
+      for (int r = 0; r < num_rays; ++r) {
+        const RayScratch& s = scratch[r];
+        if (k >= s.composite_rows || s.num_emb == 0) continue;
+        d_psi_samples.middleCols(s.emb_offset, s.num_emb) = Eigen::Map<const Eigen::MatrixXd>(
+            s.a_psi.row(k).data(), kEmbeddingFeatureDim, s.num_emb);
+      }
+      field.BackwardEmbeddingBatch(embedding_params, sb, d_psi_samples, emb_groups,
+                                   &d_embedding_params);
+      for (int r = 0; r < num_rays; ++r) {
+        if (k >= scratch[r].composite_rows || scratch[r].num_emb == 0) continue;
+        (*out)[r].jacobians[kBlockEmbedding].row(k) += d_embedding_params.col(r).transpose();
       }
     }
     if (delta != nullptr) {

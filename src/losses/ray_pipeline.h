@@ -97,6 +97,9 @@ struct RayScratch {
   int field_offset = 0;  // first column of the ray's samples in the field batch
   int match_offset = 0;  // first column of the ray's K grid points in the embedding batch
   int num_match = 0;     // K (0 if the ray has no feature terms)
+  // The ray's samples in the sample-embedding batch (rendered embedding).
+  int emb_offset = 0;
+  int num_emb = 0;  // N, or 0 without the feature_render term
   int composite_rows = 0;
   Eigen::Matrix3Xd x_root, x_star;
   std::vector<Mat37> dxroot_droot;
@@ -107,6 +110,7 @@ struct RayScratch {
   Mat34 dview_dk = Mat34::Zero();
   Eigen::Vector3d x_hat = Eigen::Vector3d::Zero();
   RowMajorMatrix a_sdf, a_rgb, a_xhat;  // adjoints for the batched MLP backward
+  RowMajorMatrix a_psi;                 // rows x 16N: of psi(X*_i), sample-major
   // Delta skinning: the ray's columns in the forward-warp batch (X*_i when
   // the flow or the 3D cycle pushes them forward, then X_hat* for the 2D
   // cycle), and the adjoints of the delta logits (rows x B per column) of the
@@ -221,13 +225,15 @@ class RayPipeline {
   int P = 0;
   int DL = 0;
   std::vector<RayScratch> scratch;
-  std::vector<int> field_groups, match_groups, fw_groups;
+  std::vector<int> field_groups, match_groups, emb_groups, fw_groups;
   int total_samples = 0;
   int total_match = 0;
+  int total_emb = 0;
   int total_fw = 0;
   DeltaSkinningBatch bw, fw;
   FieldBatch fb;
-  EmbeddingBatch eb;
+  EmbeddingBatch eb;  // the match candidates (grid points)
+  EmbeddingBatch sb;  // the samples X*_i of rays with the rendered embedding
 };
 
 }  // namespace banmo

@@ -87,6 +87,10 @@ class RayReferenceFunctor {
       if (L.has_matched) {
         for (int c = 0; c < 3; ++c) u[L.canonical + 3 * i + c] = x_star[3 * i + c];
       }
+      if (L.has_embedding) {
+        field.EvaluateEmbedding(block[kBlockEmbedding], &x_star[3 * i],
+                                &u[L.embedding + CompositeLocals::kEmbeddingDim * i]);
+      }
       if (L.has_displacement) {
         T x_t2[3], uv2[2];
         ForwardWarp(B, bones, block[kBlockPartnerBonesT], &x_star[3 * i], x_t2,

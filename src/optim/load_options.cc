@@ -8,7 +8,8 @@ LoadOptions DatasetLoadOptions(const SolverConfig& config) {
   load.load_flow = false;
   for (const StageConfig& s : config.stages) {
     load.load_features = load.load_features || s.losses[LossTerm::kFeatureMatch].weight > 0 ||
-                         s.losses[LossTerm::kCycle2d].weight > 0;
+                         s.losses[LossTerm::kCycle2d].weight > 0 ||
+                         s.losses[LossTerm::kFeatureRender].weight > 0;
     load.load_flow = load.load_flow || s.losses[LossTerm::kFlow].weight > 0;
   }
   return load;

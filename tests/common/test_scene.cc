@@ -8,7 +8,9 @@
 
 namespace banmo {
 
-RayLossWeights GoldenRayLossWeights() { return RayLossWeights({1.0, 1.0, 0.01, 1.0, 0.01, 1.0}); }
+RayLossWeights GoldenRayLossWeights() {
+  return RayLossWeights({1.0, 1.0, 0.01, 1.0, 0.01, 1.0, 1.0});
+}
 
 TestScene MakeTestScene(const TestSceneOptions& o) {
   std::mt19937 rng(o.seed);

@@ -13,7 +13,8 @@
 
 namespace banmo {
 
-// rgb 1, silhouette 1, flow 0.01, feature_match 1, cycle_2d 0.01, cycle_3d 1.
+// rgb 1, silhouette 1, flow 0.01, feature_match 1, cycle_2d 0.01, feature_render 1,
+// cycle_3d 1.
 RayLossWeights GoldenRayLossWeights();
 
 struct TestSceneOptions {
@@ -38,7 +39,8 @@ struct TestSceneOptions {
   double skinning_jacobian_cutoff = 0.0;
   uint32_t seed = 7;
   // The weights the golden values were generated with (not the config's
-  // defaults): rgb, silhouette, flow, feature_match, cycle_2d, cycle_3d.
+  // defaults): rgb, silhouette, flow, feature_match, cycle_2d, feature_render,
+  // cycle_3d.
   // (Built out of line: GCC 12 reports the inlined std::array temporary of
   // an in-class initialiser as uninitialised, -Wuninitialized.)
   RayLossWeights weights = GoldenRayLossWeights();

@@ -1,10 +1,14 @@
 // The loss functors on their own: zero at a constructed solution, the
 // hand-computed value at a perturbed input.
+#include <ceres/jet.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "banmo/losses/cycle_2d_loss.h"
 #include "banmo/losses/cycle_3d_loss.h"
 #include "banmo/losses/feature_match_loss.h"
+#include "banmo/losses/feature_render_loss.h"
 #include "banmo/losses/flow_loss.h"
 #include "banmo/losses/rgb_loss.h"
 #include "banmo/losses/silhouette_loss.h"
@@ -52,6 +56,43 @@ TEST(FeatureMatchLoss, MatchedMinusExpected) {
   for (double v : r) EXPECT_NEAR(v, 0.0, kTol);
   loss(a, b, r);
   EXPECT_NEAR(r[1], 0.2, kTol);
+}
+
+TEST(FeatureRenderLoss, NormalisedRenderingMinusFeature) {
+  Eigen::Matrix<double, 16, 1> f = Eigen::Matrix<double, 16, 1>::Zero();
+  f[0] = 0.6;
+  f[1] = 0.8;
+  const FeatureRenderLoss loss(f, 4.0);
+  double e[16] = {}, r[16];
+  // Any positive multiple of the feature renders it exactly: the term
+  // compares directions (the feature match's cosine similarity, Eq. 15).
+  e[0] = 0.3;
+  e[1] = 0.4;
+  loss(e, r);
+  for (double v : r) EXPECT_NEAR(v, 0.0, 1e-10);  // |e| floored at 1e-6: relative 2e-12
+  // A rendering along the third axis: r = 2 (e_3 - f).
+  e[0] = e[1] = 0.0;
+  e[2] = 5.0;
+  loss(e, r);
+  EXPECT_NEAR(r[0], -1.2, 1e-12);
+  EXPECT_NEAR(r[1], -1.6, 1e-12);
+  EXPECT_NEAR(r[2], 2.0, 1e-12);
+}
+
+TEST(FeatureRenderLoss, FiniteAtAZeroRendering) {
+  Eigen::Matrix<double, 16, 1> f = Eigen::Matrix<double, 16, 1>::Zero();
+  f[3] = 1.0;
+  const FeatureRenderLoss loss(f, 1.0);
+  using J = ceres::Jet<double, 16>;
+  J e[16], r[16];
+  for (int k = 0; k < 16; ++k) e[k] = J(0.0, k);
+  loss(e, r);
+  for (int k = 0; k < 16; ++k) {
+    EXPECT_NEAR(r[k].a, k == 3 ? -1.0 : 0.0, kTol);
+    // d r / d e = I / floor at e = 0: large but finite.
+    EXPECT_TRUE(std::isfinite(r[k].v.norm()));
+    EXPECT_NEAR(r[k].v[k], 1.0 / FeatureRenderLoss::kNormFloor, 1.0);
+  }
 }
 
 TEST(Cycle2dLoss, ProjectionMinusPixel) {

@@ -97,5 +97,24 @@ TEST(LossTable, ZeroWeightSwitchesATermOff) {
   EXPECT_FALSE(ray.HasTerm(LossTerm::kEikonal, weights));  // not a per-ray term
 }
 
+// feature_render is off by default (configs written before it keep their
+// meaning) and, when weighted, applies to object pixels with a feature.
+TEST(LossTable, FeatureRenderIsOptInOnObjectPixelsWithFeatures) {
+  Ray ray;
+  ray.mask = 1.0;
+  ray.has_feature = true;
+  ray.samples.depths = {1.0, 2.0};
+  ray.samples.deltas = {1.0, 1.0};
+  RayLossWeights weights;
+  EXPECT_FALSE(ray.HasTerm(LossTerm::kFeatureRender, weights));
+  weights[LossTerm::kFeatureRender] = 0.5;
+  EXPECT_TRUE(ray.HasTerm(LossTerm::kFeatureRender, weights));
+  ray.has_feature = false;
+  EXPECT_FALSE(ray.HasTerm(LossTerm::kFeatureRender, weights));
+  ray.has_feature = true;
+  ray.mask = 0.0;
+  EXPECT_FALSE(ray.HasTerm(LossTerm::kFeatureRender, weights));
+}
+
 }  // namespace
 }  // namespace banmo

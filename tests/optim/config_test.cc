@@ -16,6 +16,7 @@
 
 #include "../common/input_error.h"
 #include "banmo/model/model.h"
+#include "banmo/optim/load_options.h"
 #include "banmo/util/error.h"
 
 namespace banmo {
@@ -31,6 +32,21 @@ std::string ParseError(const std::string& yaml) {
 
 // The smallest valid config: one stage with the defaults.
 const char kMinimal[] = "stages:\n  - {}\n";
+
+// Features are loaded when any stage weights a term that reads them.
+TEST(DatasetLoadOptions, FeaturesForEachFeatureTerm) {
+  const std::vector<std::string> terms = {"feature_match", "cycle_2d", "feature_render"};
+  auto yaml = [&](const std::string& on) {
+    std::string y = "stages:\n  - losses: {silhouette: {weight: 1}";
+    for (const std::string& t : terms)
+      y += ", " + t + ": {weight: " + (t == on ? "0.5" : "0") + "}";
+    return y + "}\n";
+  };
+  for (const std::string& t : terms) {
+    EXPECT_TRUE(DatasetLoadOptions(ParseSolverConfig(yaml(t), "test.yaml")).load_features) << t;
+  }
+  EXPECT_FALSE(DatasetLoadOptions(ParseSolverConfig(yaml(""), "test.yaml")).load_features);
+}
 
 TEST(SolverConfig, MinimalConfigTakesStructDefaults) {
   const SolverConfig c = ParseSolverConfig(kMinimal, "test.yaml");

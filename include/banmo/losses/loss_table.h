@@ -25,16 +25,17 @@ enum class LossTerm {
   kFlow,
   kFeatureMatch,
   kCycle2d,
+  kFeatureRender,
   kCycle3d,
   kEikonal,
   kBoneInside,
   kPoseSmoothness
 };
-inline constexpr int kNumLossTerms = 9;
+inline constexpr int kNumLossTerms = 10;
 // LossTerm values below kNumRayTerms are evaluated per ray (losses/ray_batch.h).
-inline constexpr int kNumRayTerms = 6;
+inline constexpr int kNumRayTerms = 7;
 // ... and below kNumCompositeTerms by the composite functor (losses/ray_functors.h).
-inline constexpr int kNumCompositeTerms = 5;
+inline constexpr int kNumCompositeTerms = 6;
 
 // Parameter blocks a ray's evaluation reads.
 enum RayBlock {
@@ -107,6 +108,11 @@ inline constexpr std::array<LossTermInfo, kNumLossTerms> kLossTable = {{
      kWarpBlocks | MaskOf({kBlockSdf, kBlockEmbedding, kBlockLogBeta, kBlockPoseCode})},
     {LossTerm::kCycle2d, "cycle_2d", "Eq. 18", 0.001, 2, false, RaySelect::kObjectWithFeature,
      kWarpBlocks | MaskOf({kBlockEmbedding, kBlockRestPoseCode})},
+    // Off unless a stage weights it (configs written before it existed
+    // keep their meaning).
+    {LossTerm::kFeatureRender, "feature_render", "official code's frnd term; Eqs. 4, 15", 0.0, 16,
+     false, RaySelect::kObjectWithFeature,
+     kWarpBlocks | MaskOf({kBlockSdf, kBlockEmbedding, kBlockLogBeta, kBlockPoseCode})},
     {LossTerm::kCycle3d, "cycle_3d", "Eq. 19", 0.1, 3, true, RaySelect::kAll,
      kWarpBlocks | MaskOf({kBlockRestPoseCode, kBlockPoseCode})},
     {LossTerm::kEikonal, "eikonal", "Sec. 3.1 (VolSDF)", 0.01, 1, false, RaySelect::kNotPerRay, 0},

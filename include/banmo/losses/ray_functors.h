@@ -18,6 +18,7 @@
 #include "banmo/losses/cycle_2d_loss.h"
 #include "banmo/losses/cycle_3d_loss.h"
 #include "banmo/losses/feature_match_loss.h"
+#include "banmo/losses/feature_render_loss.h"
 #include "banmo/losses/flow_loss.h"
 #include "banmo/losses/ray.h"
 #include "banmo/losses/rgb_loss.h"
@@ -97,20 +98,25 @@ inline void Cycle3dResidual(const Cycle3dLoss& loss, const T* root_delta, const 
 struct CompositeLocals {
   int num_samples = 0;
   int sdf = 0, rgb = 0, canonical = 0, displacement = 0, log_beta = 0, matched = 0,
-      cycle_projection = 0;
+      cycle_projection = 0, embedding = 0;
   int size = 0;
-  bool has_rgb = false, has_displacement = false, has_matched = false, has_cycle = false;
+  bool has_rgb = false, has_displacement = false, has_matched = false, has_cycle = false,
+       has_embedding = false;
+  // Size of psi_i, the canonical embedding of one sample (FeatureRenderLoss).
+  static constexpr int kEmbeddingDim = FeatureRenderLoss::kNumResiduals;
 
   // Layout: [sdf (N) | rgb (3N) | canonical X*_i (3N) | displacement (2N) |
-  //          log_beta (1) | matched X_hat* (3) | cycle projection (2)].
+  //          log_beta (1) | matched X_hat* (3) | cycle projection (2) |
+  //          embedding psi(X*_i) (16N)].
   static CompositeLocals For(const Ray& ray, const RayLossWeights& weights);
 };
 
 // Everything of a ray downstream of the per-sample field values and warps:
 // composites the samples into the pixel's predictions by volume rendering
-// (Eqs. 4-7: colour, opacity, expected positions and flow) and evaluates
-// the rgb, silhouette, flow, feature-match and 2D-cycle residuals
-// (Eqs. 16-18) of the ray's active terms, in LossTerm order. Input u laid
+// (Eqs. 4-7: colour, opacity, expected positions and flow, embedding) and
+// evaluates the rgb, silhouette, flow, feature-match, 2D-cycle and
+// rendered-embedding residuals (Eqs. 16-18) of the ray's active terms, in
+// LossTerm order. Input u laid
 // out as CompositeLocals. (Names: docs/design.md, "Names".)
 class RayCompositeFunctor {
  public:
@@ -173,6 +179,16 @@ class RayCompositeFunctor {
       Cycle2dLoss(ray_.uv, weights_[LossTerm::kCycle2d])(u + locals_.cycle_projection,
                                                          residual + row);
       row += Cycle2dLoss::kNumResiduals;
+    }
+    if (active(LossTerm::kFeatureRender)) {
+      constexpr int E = CompositeLocals::kEmbeddingDim;
+      T rendered[E];
+      for (int k = 0; k < E; ++k) rendered[k] = T(0);
+      for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < E; ++k) rendered[k] += tau[i] * u[locals_.embedding + E * i + k];
+      }
+      FeatureRenderLoss(ray_.feature, weights_[LossTerm::kFeatureRender])(rendered, residual + row);
+      row += FeatureRenderLoss::kNumResiduals;
     }
     return true;
   }

@@ -7,8 +7,8 @@
 namespace banmo {
 
 // The dataset parts the stages of `config` use: features when any stage
-// weights feature_match or cycle_2d, flow when any stage weights flow; depth
-// never (ground truth).
+// weights feature_match, cycle_2d or feature_render, flow when any stage
+// weights flow; depth never (ground truth).
 LoadOptions DatasetLoadOptions(const SolverConfig& config);
 
 }  // namespace banmo
