@@ -31,7 +31,16 @@ std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, in
     for (int k = 0; k < 3; ++k) w[mesh.faces(k, f)] += area / 3.0;
   }
   if (!(w.sum() > 0)) w.setOnes();
+  return WeightedKMeans(mesh.vertices, w, num_bones, seed);
+}
 
+std::vector<Eigen::Vector3d> WeightedKMeans(const Eigen::Matrix3Xd& points,
+                                            const Eigen::VectorXd& w, int k, uint32_t seed) {
+  const int V = static_cast<int>(points.cols());
+  const int num_bones = k;
+  CHECK_GE(k, 1);
+  CHECK_GE(V, k);
+  CHECK_EQ(w.size(), V);
   std::mt19937 rng(seed);
   // Draws an index with probability proportional to p (own sampler: the
   // standard distributions differ between library implementations).
@@ -51,15 +60,15 @@ std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, in
 
   // k-means++ seeding.
   std::vector<Eigen::Vector3d> centres;
-  centres.push_back(mesh.vertices.col(draw(w)));
+  centres.push_back(points.col(draw(w)));
   Eigen::VectorXd d2(V);
-  for (int i = 0; i < V; ++i) d2[i] = (mesh.vertices.col(i) - centres[0]).squaredNorm();
+  for (int i = 0; i < V; ++i) d2[i] = (points.col(i) - centres[0]).squaredNorm();
   while (static_cast<int>(centres.size()) < num_bones) {
     const Eigen::VectorXd p = w.cwiseProduct(d2);
     const int pick = p.sum() > 0 ? draw(p) : draw(w);
-    centres.push_back(mesh.vertices.col(pick));
+    centres.push_back(points.col(pick));
     for (int i = 0; i < V; ++i) {
-      d2[i] = std::min(d2[i], (mesh.vertices.col(i) - centres.back()).squaredNorm());
+      d2[i] = std::min(d2[i], (points.col(i) - centres.back()).squaredNorm());
     }
   }
 
@@ -72,7 +81,7 @@ std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, in
         int best = 0;
         double best_d = std::numeric_limits<double>::infinity();
         for (int b = 0; b < num_bones; ++b) {
-          const double d = (mesh.vertices.col(i) - centres[b]).squaredNorm();
+          const double d = (points.col(i) - centres[b]).squaredNorm();
           if (d < best_d) {
             best_d = d;
             best = b;
@@ -88,7 +97,7 @@ std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, in
     std::vector<Eigen::Vector3d> sum(num_bones, Eigen::Vector3d::Zero());
     std::vector<double> mass(num_bones, 0.0);
     for (int i = 0; i < V; ++i) {
-      sum[label[i]] += w[i] * mesh.vertices.col(i);
+      sum[label[i]] += w[i] * points.col(i);
       mass[label[i]] += w[i];
     }
     for (int b = 0; b < num_bones; ++b) {

@@ -108,6 +108,7 @@ template <class V>
 void VisitFields(V& v, ScheduleConfig& o) {
   v("bone_reinit_at", o.bone_reinit_at);
   v("bone_reinit_keep_motion", o.bone_reinit_keep_motion);
+  v("bone_sites", o.bone_sites);
   v("bounds_refresh_every", o.bounds_refresh_every);
   v("anneal_end_fraction", o.anneal_end_fraction);
   v("delta_skinning_from", o.delta_skinning_from);

@@ -10,6 +10,7 @@
 
 #include "banmo/deform/bone_centres.h"
 #include "banmo/extract/extract.h"
+#include "banmo/extract/skeleton.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/regularizers.h"
@@ -350,7 +351,8 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
   }
   for (double at : stage.schedule.bone_reinit_at) {
     if (model.num_bones() > 0 && batch_index == static_cast<int>(std::lround(at * stage.batches))) {
-      ReinitializeBones(stage.schedule.bone_reinit_keep_motion, c->state);
+      ReinitializeBones(stage.schedule.bone_reinit_keep_motion, stage.schedule.bone_sites,
+                        c->state);
     }
   }
   // Automatic model sizing (optim/auto_size.h), first stage only.
@@ -449,7 +451,7 @@ namespace banmo {
 
 void Solver::RefreshBounds() { bounds_ = CanonicalBoundsFromSurface(*model_, bounds_); }
 
-void Solver::ReinitializeBones(bool keep_motion, SolverState* state) {
+void Solver::ReinitializeBones(bool keep_motion, BoneSites sites, SolverState* state) {
   Model& model = *model_;
   const int B = model.num_bones();
   ExtractOptions options;
@@ -464,8 +466,18 @@ void Solver::ReinitializeBones(bool keep_motion, SolverState* state) {
     return;  // no surface yet: keep the bones
   }
   if (mesh.NumVertices() < B) return;
-  const std::vector<Eigen::Vector3d> centres =
-      BoneCentresFromSurface(mesh, B, static_cast<uint32_t>(state->rng()));
+  const uint32_t seed = static_cast<uint32_t>(state->rng());
+  std::vector<Eigen::Vector3d> centres;
+  if (sites == BoneSites::kSkeleton) {
+    try {
+      centres = BoneCentresFromSkeleton(mesh, B, seed);
+    } catch (const InputError& e) {
+      // A coarse surface can be too rough for a skeleton: the surface's
+      // k-means still places the bones.
+      std::printf("bone re-initialisation: %s; bone centres from the surface instead\n", e.what());
+    }
+  }
+  if (centres.empty()) centres = BoneCentresFromSurface(mesh, B, seed);
   const std::vector<double> old_bones(model.bones(), model.bones() + kBoneSize * B);
   InitializeBones(centres, model.options().init_bone_scale, model.bones());
   for (int v = 0; v < model.num_videos(); ++v) {

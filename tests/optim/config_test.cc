@@ -608,6 +608,7 @@ SolverConfig EveryFieldChanged() {
     s.sampling.clip_margin = 0.05;
     s.schedule.bone_reinit_at = {0.1, 0.9};
     s.schedule.bone_reinit_keep_motion = true;
+    s.schedule.bone_sites = BoneSites::kSkeleton;
     s.schedule.bounds_refresh_every = 25;
     s.schedule.anneal_end_fraction = 0.4;
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
@@ -733,6 +734,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.sampling.clip_margin, t.sampling.clip_margin);
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
     EXPECT_EQ(s.schedule.bone_reinit_keep_motion, t.schedule.bone_reinit_keep_motion);
+    EXPECT_EQ(s.schedule.bone_sites, t.schedule.bone_sites);
     EXPECT_EQ(s.schedule.bounds_refresh_every, t.schedule.bounds_refresh_every);
     EXPECT_EQ(s.schedule.anneal_end_fraction, t.schedule.anneal_end_fraction);
     EXPECT_EQ(s.pose_solve.at, t.pose_solve.at);

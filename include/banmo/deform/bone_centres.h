@@ -20,4 +20,11 @@ namespace banmo {
 std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, int num_bones,
                                                     uint32_t seed);
 
+// k weighted k-means centres of points (3 x n, n >= k >= 1; weights >= 0
+// with a positive sum): k-means++ seeding with `seed`, then Lloyd
+// iterations until no assignment changes or 50 iterations. Deterministic in
+// seed. BoneCentresFromSurface is this on area-weighted vertices.
+std::vector<Eigen::Vector3d> WeightedKMeans(const Eigen::Matrix3Xd& points,
+                                            const Eigen::VectorXd& w, int k, uint32_t seed);
+
 }  // namespace banmo

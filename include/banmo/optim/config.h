@@ -23,6 +23,7 @@ enum class StepRule { kAdam, kLm, kAlternate };
 enum class LinearSolverType { kCgnr, kIterativeSchur };
 enum class LrSchedule { kOneCycle, kConstant };
 enum class RobustLossType { kNone, kHuber, kCauchy, kSoftL1, kArctan, kTolerant };
+enum class BoneSites { kSurface, kSkeleton };
 
 template <>
 struct EnumNames<StepRule> {
@@ -45,6 +46,12 @@ struct EnumNames<RobustLossType> {
       {RobustLossType::kNone, "none"},     {RobustLossType::kHuber, "huber"},
       {RobustLossType::kCauchy, "cauchy"}, {RobustLossType::kSoftL1, "soft_l1"},
       {RobustLossType::kArctan, "arctan"}, {RobustLossType::kTolerant, "tolerant"}};
+};
+
+template <>
+struct EnumNames<BoneSites> {
+  static constexpr std::pair<BoneSites, const char*> kNames[] = {
+      {BoneSites::kSurface, "surface"}, {BoneSites::kSkeleton, "skeleton"}};
 };
 
 // Robust loss applied to one loss term's residual block (Ceres LossFunction).
@@ -134,6 +141,11 @@ struct ScheduleConfig {
   // A re-initialisation hands each frame's motion to the new bones
   // (TransferBoneMotion, deform/bones.h) instead of resetting it.
   bool bone_reinit_keep_motion = false;
+  // Where a re-initialisation puts the bone centres: k-means of the coarse
+  // surface (area-weighted), or of its mean-curvature-flow curve skeleton
+  // (length-weighted), which gives limbs bones in proportion to their
+  // length instead of their area (extract/skeleton.h).
+  BoneSites bone_sites = BoneSites::kSurface;
   int bounds_refresh_every = 0;      // batches between canonical-bounds refreshes (0 = never)
   double anneal_end_fraction = 0.0;  // coarse-to-fine PE annealing reaches all bands here (0 = off)
   double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)

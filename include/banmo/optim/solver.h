@@ -153,7 +153,7 @@ class Solver {
   // carry each frame's old motion, TransferBoneMotion), MLP_Delta's output
   // layer reset to zero (its logits belonged to the old bones), their Adam
   // moments cleared.
-  void ReinitializeBones(bool keep_motion, SolverState* state);
+  void ReinitializeBones(bool keep_motion, BoneSites sites, SolverState* state);
 
   const Dataset& dataset_;
   const SolverConfig& config_;
