@@ -84,12 +84,18 @@ TEST(LossTable, TermBlocksFollowTheTable) {
   }
 }
 
-TEST(LossTable, ZeroWeightSwitchesATermOff) {
+// An object pixel's ray with a feature and two samples.
+Ray ObjectRayWithFeature() {
   Ray ray;
   ray.mask = 1.0;
   ray.has_feature = true;
   ray.samples.depths = {1.0, 2.0};
   ray.samples.deltas = {1.0, 1.0};
+  return ray;
+}
+
+TEST(LossTable, ZeroWeightSwitchesATermOff) {
+  Ray ray = ObjectRayWithFeature();
   RayLossWeights weights;
   EXPECT_TRUE(ray.HasTerm(LossTerm::kCycle2d, weights));
   weights[LossTerm::kCycle2d] = 0.0;
@@ -100,11 +106,7 @@ TEST(LossTable, ZeroWeightSwitchesATermOff) {
 // feature_render is off by default (configs written before it keep their
 // meaning) and, when weighted, applies to object pixels with a feature.
 TEST(LossTable, FeatureRenderIsOptInOnObjectPixelsWithFeatures) {
-  Ray ray;
-  ray.mask = 1.0;
-  ray.has_feature = true;
-  ray.samples.depths = {1.0, 2.0};
-  ray.samples.deltas = {1.0, 1.0};
+  Ray ray = ObjectRayWithFeature();
   RayLossWeights weights;
   EXPECT_FALSE(ray.HasTerm(LossTerm::kFeatureRender, weights));
   weights[LossTerm::kFeatureRender] = 0.5;
