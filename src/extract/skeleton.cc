@@ -1,7 +1,6 @@
 // CGAL is used only in this file and largest_component.cc (slow headers).
 #include "banmo/extract/skeleton.h"
 
-#include <CGAL/Random.h>
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/extract_mean_curvature_flow_skeleton.h>
@@ -40,11 +39,6 @@ void CurveSkeleton(const TriangleMesh& mesh, Eigen::Matrix3Xd* from, Eigen::Matr
   if (sm.number_of_faces() == 0 || !CGAL::is_closed(sm)) {
     ThrowInputError("curve skeleton: the mesh (", mesh.NumFaces(), " faces) is not closed");
   }
-  // The medially-centred flow inserts points into a Delaunay triangulation
-  // in an order shuffled with CGAL's global default random generator, so
-  // the skeleton would depend on earlier calls: reset it for a result that
-  // depends on the mesh alone.
-  CGAL::get_default_random() = CGAL::Random(0);
   Skeletonization::Skeleton skeleton;
   CGAL::extract_mean_curvature_flow_skeleton(sm, skeleton);
   const int E = static_cast<int>(boost::num_edges(skeleton));
