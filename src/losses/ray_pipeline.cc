@@ -734,6 +734,31 @@ void RayPipeline::Cycle3dRows(RayWork& w) {
   }
 }
 
+void RayPipeline::MatchPsiCotangent(int k, Eigen::MatrixXd* d_psi) const {
+  d_psi->setZero(kEmbeddingFeatureDim, total_match);
+  for (int r = 0; r < num_rays; ++r) {
+    const RayScratch& s = scratch[r];
+    if (k >= s.composite_rows || s.num_match == 0) continue;
+    const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
+    const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
+    const Eigen::Vector3d a = s.a_xhat.row(k).transpose();
+    Eigen::MatrixXd dpsi;
+    SoftArgmaxBackward(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
+                       options_.matcher.temperature, a.data(), &dpsi, nullptr);
+    d_psi->middleCols(s.match_offset, s.num_match) = dpsi;
+  }
+}
+
+void RayPipeline::SamplePsiCotangent(int k, Eigen::MatrixXd* d_psi) const {
+  d_psi->setZero(kEmbeddingFeatureDim, total_emb);
+  for (int r = 0; r < num_rays; ++r) {
+    const RayScratch& s = scratch[r];
+    if (k >= s.composite_rows || s.num_emb == 0) continue;
+    d_psi->middleCols(s.emb_offset, s.num_emb) =
+        Eigen::Map<const Eigen::MatrixXd>(s.a_psi.row(k).data(), kEmbeddingFeatureDim, s.num_emb);
+  }
+}
+
 // Pass 4, gradient mode: ONE backward pass per MLP over the whole
 // minibatch (a single group) with the rays' cotangent rows.
 void RayPipeline::MlpGradient() {
@@ -753,31 +778,15 @@ void RayPipeline::MlpGradient() {
   (*mlp_gradient)[0] = d_sdf_params.col(0);
   (*mlp_gradient)[1] = d_color_params.col(0);
   (*mlp_gradient)[2] = Eigen::VectorXd::Zero(model.embedding_size());
+  Eigen::MatrixXd d_psi;
   if (total_match > 0) {
-    Eigen::MatrixXd d_psi = Eigen::MatrixXd::Zero(kEmbeddingFeatureDim, total_match);
-    for (int r = 0; r < num_rays; ++r) {
-      const RayScratch& s = scratch[r];
-      if (s.composite_rows == 0 || s.num_match == 0) continue;
-      const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
-      const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
-      const Eigen::Vector3d a = s.a_xhat.row(0).transpose();
-      Eigen::MatrixXd dpsi;
-      SoftArgmaxBackward(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
-                         options_.matcher.temperature, a.data(), &dpsi, nullptr);
-      d_psi.middleCols(s.match_offset, s.num_match) = dpsi;
-    }
+    MatchPsiCotangent(0, &d_psi);
     field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, {0, total_match},
                                  &d_embedding_params);
-    (*mlp_gradient)[2] = d_embedding_params.col(0);
+    (*mlp_gradient)[2] += d_embedding_params.col(0);
   }
   if (total_emb > 0) {
-    Eigen::MatrixXd d_psi = Eigen::MatrixXd::Zero(kEmbeddingFeatureDim, total_emb);
-    for (int r = 0; r < num_rays; ++r) {
-      const RayScratch& s = scratch[r];
-      if (s.composite_rows == 0 || s.num_emb == 0) continue;
-      d_psi.middleCols(s.emb_offset, s.num_emb) =
-          Eigen::Map<const Eigen::MatrixXd>(s.a_psi.row(0).data(), kEmbeddingFeatureDim, s.num_emb);
-    }
+    SamplePsiCotangent(0, &d_psi);
     field.BackwardEmbeddingBatch(embedding_params, sb, d_psi, {0, total_emb}, &d_embedding_params);
     (*mlp_gradient)[2] += d_embedding_params.col(0);
   }
@@ -800,9 +809,7 @@ void RayPipeline::MlpJacobians() {
   for (const RayScratch& s : scratch) max_rows = std::max(max_rows, s.composite_rows);
   Eigen::VectorXd d_sdf(total_samples);
   Eigen::Matrix3Xd d_rgb(3, total_samples);
-  Eigen::MatrixXd d_sdf_params, d_color_params, d_embedding_params;
-  Eigen::MatrixXd d_psi(kEmbeddingFeatureDim, total_match);
-  Eigen::MatrixXd d_psi_samples(kEmbeddingFeatureDim, total_emb);
+  Eigen::MatrixXd d_sdf_params, d_color_params, d_embedding_params, d_psi;
   for (int k = 0; k < max_rows; ++k) {
     d_sdf.setZero();
     d_rgb.setZero();
@@ -830,18 +837,7 @@ void RayPipeline::MlpJacobians() {
       }
     }
     if (any_match) {
-      d_psi.setZero();
-      for (int r = 0; r < num_rays; ++r) {
-        const RayScratch& s = scratch[r];
-        if (k >= s.composite_rows || s.num_match == 0) continue;
-        const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
-        const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
-        const Eigen::Vector3d a = s.a_xhat.row(k).transpose();
-        Eigen::MatrixXd dpsi;
-        SoftArgmaxBackward(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
-                           options_.matcher.temperature, a.data(), &dpsi, nullptr);
-        d_psi.middleCols(s.match_offset, s.num_match) = dpsi;
-      }
+      MatchPsiCotangent(k, &d_psi);
       field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, match_groups, &d_embedding_params);
       for (int r = 0; r < num_rays; ++r) {
         if (k >= scratch[r].composite_rows || scratch[r].num_match == 0) continue;
@@ -849,15 +845,8 @@ void RayPipeline::MlpJacobians() {
       }
     }
     if (any_emb) {
-      d_psi_samples.setZero();
-      for (int r = 0; r < num_rays; ++r) {
-        const RayScratch& s = scratch[r];
-        if (k >= s.composite_rows || s.num_emb == 0) continue;
-        d_psi_samples.middleCols(s.emb_offset, s.num_emb) = Eigen::Map<const Eigen::MatrixXd>(
-            s.a_psi.row(k).data(), kEmbeddingFeatureDim, s.num_emb);
-      }
-      field.BackwardEmbeddingBatch(embedding_params, sb, d_psi_samples, emb_groups,
-                                   &d_embedding_params);
+      SamplePsiCotangent(k, &d_psi);
+      field.BackwardEmbeddingBatch(embedding_params, sb, d_psi, emb_groups, &d_embedding_params);
       for (int r = 0; r < num_rays; ++r) {
         if (k >= scratch[r].composite_rows || scratch[r].num_emb == 0) continue;
         (*out)[r].jacobians[kBlockEmbedding].row(k) += d_embedding_params.col(r).transpose();

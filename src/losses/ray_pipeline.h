@@ -186,6 +186,12 @@ class RayPipeline {
   void Cycle3dRows(RayWork& w);
   void MlpGradient();
   void MlpJacobians();
+  // The cotangent of the embedding MLP's outputs for residual row k of every
+  // ray that has one (zero columns elsewhere): at the match candidates
+  // (through the soft-argmax's backward), 16 x total_match, or at the
+  // samples of the rendered embedding, 16 x total_emb.
+  void MatchPsiCotangent(int k, Eigen::MatrixXd* d_psi) const;
+  void SamplePsiCotangent(int k, Eigen::MatrixXd* d_psi) const;
   void DeltaCycle3dJacobians();
   // Delta logits of backward-warp sample `col` / forward-batch column `col`.
   const double* bw_logits(int col) const;
