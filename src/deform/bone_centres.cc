@@ -37,7 +37,6 @@ std::vector<Eigen::Vector3d> BoneCentresFromSurface(const TriangleMesh& mesh, in
 std::vector<Eigen::Vector3d> WeightedKMeans(const Eigen::Matrix3Xd& points,
                                             const Eigen::VectorXd& w, int k, uint32_t seed) {
   const int V = static_cast<int>(points.cols());
-  const int num_bones = k;
   CHECK_GE(k, 1);
   CHECK_GE(V, k);
   CHECK_EQ(w.size(), V);
@@ -63,7 +62,7 @@ std::vector<Eigen::Vector3d> WeightedKMeans(const Eigen::Matrix3Xd& points,
   centres.push_back(points.col(draw(w)));
   Eigen::VectorXd d2(V);
   for (int i = 0; i < V; ++i) d2[i] = (points.col(i) - centres[0]).squaredNorm();
-  while (static_cast<int>(centres.size()) < num_bones) {
+  while (static_cast<int>(centres.size()) < k) {
     const Eigen::VectorXd p = w.cwiseProduct(d2);
     const int pick = p.sum() > 0 ? draw(p) : draw(w);
     centres.push_back(points.col(pick));
@@ -80,11 +79,11 @@ std::vector<Eigen::Vector3d> WeightedKMeans(const Eigen::Matrix3Xd& points,
       for (int i = begin; i < end; ++i) {
         int best = 0;
         double best_d = std::numeric_limits<double>::infinity();
-        for (int b = 0; b < num_bones; ++b) {
-          const double d = (points.col(i) - centres[b]).squaredNorm();
+        for (int c = 0; c < k; ++c) {
+          const double d = (points.col(i) - centres[c]).squaredNorm();
           if (d < best_d) {
             best_d = d;
-            best = b;
+            best = c;
           }
         }
         if (best != label[i]) changed_chunk[i] = 1;
@@ -94,14 +93,14 @@ std::vector<Eigen::Vector3d> WeightedKMeans(const Eigen::Matrix3Xd& points,
     const bool changed =
         std::any_of(changed_chunk.begin(), changed_chunk.end(), [](char c) { return c != 0; });
     if (!changed) break;
-    std::vector<Eigen::Vector3d> sum(num_bones, Eigen::Vector3d::Zero());
-    std::vector<double> mass(num_bones, 0.0);
+    std::vector<Eigen::Vector3d> sum(k, Eigen::Vector3d::Zero());
+    std::vector<double> mass(k, 0.0);
     for (int i = 0; i < V; ++i) {
       sum[label[i]] += w[i] * points.col(i);
       mass[label[i]] += w[i];
     }
-    for (int b = 0; b < num_bones; ++b) {
-      if (mass[b] > 0) centres[b] = sum[b] / mass[b];  // an empty cluster keeps its centre
+    for (int c = 0; c < k; ++c) {
+      if (mass[c] > 0) centres[c] = sum[c] / mass[c];  // an empty cluster keeps its centre
     }
   }
   return centres;
