@@ -109,6 +109,7 @@ void VisitFields(V& v, ScheduleConfig& o) {
   v("bone_reinit_at", o.bone_reinit_at);
   v("bone_reinit_keep_motion", o.bone_reinit_keep_motion);
   v("bone_sites", o.bone_sites);
+  v("freeze_after_reinit", o.freeze_after_reinit);
   v("bounds_refresh_every", o.bounds_refresh_every);
   v("anneal_end_fraction", o.anneal_end_fraction);
   v("delta_skinning_from", o.delta_skinning_from);
@@ -656,6 +657,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
 
   const std::string h = p + ".schedule";
   c.IncreasingFractions(h + ".bone_reinit_at", s.schedule.bone_reinit_at);
+  c.Fraction(h + ".freeze_after_reinit", s.schedule.freeze_after_reinit);
+  if (s.schedule.freeze_after_reinit > 0.0 && s.schedule.bone_reinit_at.empty()) {
+    c.Fail(h + ".freeze_after_reinit",
+           "needs schedule.bone_reinit_at (the freeze follows each re-initialisation)");
+  }
   c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);

@@ -353,6 +353,12 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
     if (model.num_bones() > 0 && batch_index == static_cast<int>(std::lround(at * stage.batches))) {
       ReinitializeBones(stage.schedule.bone_reinit_keep_motion, stage.schedule.bone_sites,
                         c->state);
+      const long freeze = std::lround(stage.schedule.freeze_after_reinit * stage.batches);
+      if (!c->options.quiet && freeze > 0) {
+        std::printf("[%s] bones re-initialised; shape, appearance and root held for %ld batches\n",
+                    stage.name.c_str(), freeze);
+        std::fflush(stdout);
+      }
     }
   }
   // Automatic model sizing (optim/auto_size.h), first stage only.

@@ -1,5 +1,8 @@
 #include "stage_problem.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "banmo/deform/bones.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/losses/regularizers.h"
@@ -124,9 +127,31 @@ void StageProblem::HoldGroup(ParameterGroup g, bool hold) {
   }
 }
 
+bool StageProblem::FrozenAfterReinit(double fraction) const {
+  const ScheduleConfig& schedule = stage_.schedule;
+  if (!(schedule.freeze_after_reinit > 0.0)) return false;
+  // The batches the solver re-initialises at (Solver::RunSchedules) and the
+  // batches of the freeze after them, counted as the schedules count.
+  const int batches = std::max(1, stage_.batches);
+  const long batch = std::lround(fraction * batches);
+  const long length = std::lround(schedule.freeze_after_reinit * batches);
+  for (double at : schedule.bone_reinit_at) {
+    const long start = std::lround(at * batches);
+    if (batch >= start && batch < start + length) return true;
+  }
+  return false;
+}
+
 void StageProblem::ScheduleGroups(double fraction) {
-  if (stage_.schedule.root_free_from > 0.0) {
-    HoldGroup(ParameterGroup::kRoot, fraction < stage_.schedule.root_free_from);
+  using G = ParameterGroup;
+  const bool frozen = model_.num_bones() > 0 && FrozenAfterReinit(fraction);
+  if (stage_.schedule.freeze_after_reinit > 0.0) {
+    for (G g : {G::kSdf, G::kColor, G::kEmbedding, G::kLogBeta, G::kAppearance}) {
+      HoldGroup(g, frozen);
+    }
+  }
+  if (stage_.schedule.root_free_from > 0.0 || stage_.schedule.freeze_after_reinit > 0.0) {
+    HoldGroup(G::kRoot, frozen || fraction < stage_.schedule.root_free_from);
   }
   if (!model_.has_delta_skinning()) return;
   const bool free = fraction >= stage_.schedule.delta_skinning_from;

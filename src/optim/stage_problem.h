@@ -48,7 +48,10 @@ class StageProblem {
   //   before their fraction;
   // - delta skinning (schedule.delta_skinning_from): before the fraction its
   //   groups are held constant, and while MLP_Delta's output is still zero
-  //   the batch leaves it out (same values, no cost).
+  //   the batch leaves it out (same values, no cost);
+  // - shape, appearance and root poses are held constant for
+  //   schedule.freeze_after_reinit of the stage after each bone
+  //   re-initialisation.
   void ScheduleGroups(double fraction);
 
   // Removes the previous minibatch's residual blocks.
@@ -75,6 +78,8 @@ class StageProblem {
   bool IsMlpWeights(const double* block) const;
 
  private:
+  // Whether `fraction` falls in the freeze after a bone re-initialisation.
+  bool FrozenAfterReinit(double fraction) const;
   // Holds group g constant (or frees it, unless the stage holds it).
   void HoldGroup(ParameterGroup g, bool hold);
   void AddBlock(ParameterGroup group, double* data, int size,

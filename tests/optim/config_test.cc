@@ -354,6 +354,13 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) {
          S(c).schedule.bone_reinit_at = {0.5, 0.2};
        }},
+      {"stages[1].schedule.freeze_after_reinit",
+       [&](SolverConfig* c) {
+         S(c).schedule.bone_reinit_at = {0.2};
+         S(c).schedule.freeze_after_reinit = 1.5;
+       }},
+      {"stages[1].schedule.freeze_after_reinit",  // nothing to follow
+       [&](SolverConfig* c) { S(c).schedule.freeze_after_reinit = 0.05; }},
       {"stages[1].schedule.bounds_refresh_every",
        [&](SolverConfig* c) { S(c).schedule.bounds_refresh_every = -1; }},
       {"stages[1].schedule.anneal_end_fraction",
@@ -611,6 +618,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.bone_reinit_at = {0.1, 0.9};
     s.schedule.bone_reinit_keep_motion = true;
     s.schedule.bone_sites = BoneSites::kSkeleton;
+    s.schedule.freeze_after_reinit = 0.03;
     s.schedule.bounds_refresh_every = 25;
     s.schedule.anneal_end_fraction = 0.4;
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
@@ -737,6 +745,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
     EXPECT_EQ(s.schedule.bone_reinit_keep_motion, t.schedule.bone_reinit_keep_motion);
     EXPECT_EQ(s.schedule.bone_sites, t.schedule.bone_sites);
+    EXPECT_EQ(s.schedule.freeze_after_reinit, t.schedule.freeze_after_reinit);
     EXPECT_EQ(s.schedule.bounds_refresh_every, t.schedule.bounds_refresh_every);
     EXPECT_EQ(s.schedule.anneal_end_fraction, t.schedule.anneal_end_fraction);
     EXPECT_EQ(s.pose_solve.at, t.pose_solve.at);

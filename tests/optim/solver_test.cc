@@ -97,6 +97,43 @@ TEST(Solver, RootCorrectionsAreHeldUntilTheirFraction) {
   EXPECT_GT(moved[3], 0.0);
 }
 
+// schedule.freeze_after_reinit: after the bones are re-initialised (batch 2
+// of 8) shape, appearance and root poses stay exactly where they are for
+// the freeze (4 batches) while the bone transforms move; then all move.
+TEST(Solver, ShapeAndRootAreHeldAfterABoneReinitialisation) {
+  const Dataset& data = TinyDataset();
+  SolverConfig config = TinyConfig(StepRule::kAdam, 8);
+  config.stages[0].schedule.bone_reinit_at = {0.25};
+  config.stages[0].schedule.freeze_after_reinit = 0.5;
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  struct Snapshot {
+    std::vector<double> sdf, color, root, bones_t;
+  };
+  std::vector<Snapshot> after;  // after[i]: the model after batch i's step
+  SolveOptions options = options_quiet();
+  options.on_batch = [&](const BatchProgress&, const Model& model) {
+    Snapshot s;
+    s.sdf.assign(model.sdf(), model.sdf() + model.sdf_size());
+    s.color.assign(model.color(), model.color() + model.color_size());
+    const Pose root = model.RootPose(0, 1);
+    s.root.assign(root.data(), root.data() + 7);
+    s.bones_t = model.frame(0, 1).bones_t;
+    after.push_back(std::move(s));
+  };
+  solver.Run(options);
+  ASSERT_EQ(after.size(), 8u);
+  EXPECT_NE(after[1].sdf, after[0].sdf);  // free before the re-initialisation
+  for (int i = 2; i <= 5; ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(after[i].sdf, after[1].sdf);
+    EXPECT_EQ(after[i].color, after[1].color);
+    EXPECT_EQ(after[i].root, after[1].root);
+  }
+  EXPECT_NE(after[3].bones_t, after[2].bones_t);  // the bones take up the motion
+  EXPECT_NE(after[6].sdf, after[5].sdf);          // free again
+  EXPECT_NE(after[6].root, after[5].root);
+}
+
 // The temporal step basis with as many cosines as frames is the orthonormal
 // DCT-II: a change of coordinates, no loss of freedom. With fewer, a frame's
 // squared basis values still sum to about 1 (its step is about lr).

@@ -146,6 +146,12 @@ struct ScheduleConfig {
   // (length-weighted), which gives limbs bones in proportion to their
   // length instead of their area (extract/skeleton.h).
   BoneSites bone_sites = BoneSites::kSurface;
+  // For this fraction of the stage after each re-initialisation the shape,
+  // appearance and root poses (groups sdf, color, embedding, log_beta,
+  // appearance, root) are held constant, so the new bones take up the
+  // motion before the density spreads to explain it (the official BANMo
+  // code freezes them for 1 % of training). 0 = off.
+  double freeze_after_reinit = 0.0;
   int bounds_refresh_every = 0;      // batches between canonical-bounds refreshes (0 = never)
   double anneal_end_fraction = 0.0;  // coarse-to-fine PE annealing reaches all bands here (0 = off)
   double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)
