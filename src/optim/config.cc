@@ -115,6 +115,7 @@ void VisitFields(V& v, ScheduleConfig& o) {
   v("delta_skinning_from", o.delta_skinning_from);
   v("root_free_from", o.root_free_from);
   v("unbiased_silhouette_from", o.unbiased_silhouette_from);
+  v("neus_from", o.neus_from);
 }
 
 template <class V>
@@ -667,6 +668,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
   c.Fraction(h + ".root_free_from", s.schedule.root_free_from);
   c.NonNegative(h + ".unbiased_silhouette_from", s.schedule.unbiased_silhouette_from);
+  c.NonNegative(h + ".neus_from", s.schedule.neus_from);
   if (s.schedule.unbiased_silhouette_from < 1.0 && !(s.sampling.foreground_fraction < 1.0)) {
     c.Fail(h + ".unbiased_silhouette_from",
            "needs sampling.foreground_fraction < 1 (background pixels are never drawn at 1)");

@@ -349,6 +349,14 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
       batch_index % stage.schedule.bounds_refresh_every == 0) {
     RefreshBounds();
   }
+  if (fraction >= stage.schedule.neus_from && model.options().density != DensityModel::kNeus) {
+    model.SetDensity(DensityModel::kNeus);
+    sp->batch().Invalidate();  // cached values rendered with the old density
+    if (!c->options.quiet) {
+      std::printf("[%s] density: NeuS from batch %d on\n", stage.name.c_str(), batch_index);
+      std::fflush(stdout);
+    }
+  }
   for (double at : stage.schedule.bone_reinit_at) {
     if (model.num_bones() > 0 && batch_index == static_cast<int>(std::lround(at * stage.batches))) {
       ReinitializeBones(stage.schedule.bone_reinit_keep_motion, stage.schedule.bone_sites,

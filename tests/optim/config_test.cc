@@ -373,6 +373,7 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).schedule.root_free_from = 1.5; }},
       {"stages[1].schedule.unbiased_silhouette_from",
        [&](SolverConfig* c) { S(c).schedule.unbiased_silhouette_from = -0.1; }},
+      {"stages[1].schedule.neus_from", [&](SolverConfig* c) { S(c).schedule.neus_from = -0.1; }},
       {"stages[1].schedule.unbiased_silhouette_from",
        [&](SolverConfig* c) {
          S(c).schedule.unbiased_silhouette_from = 0.5;
@@ -624,6 +625,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
     s.schedule.root_free_from = 0.15;                     // before pose_solve.at[0]
     s.schedule.unbiased_silhouette_from = 0.35;
+    s.schedule.neus_from = 0.45;
     s.pose_solve.at = {0.2, 0.7};
     s.pose_solve.rays = 96;
     s.pose_solve.iterations = 4;
@@ -759,6 +761,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
     EXPECT_EQ(s.schedule.root_free_from, t.schedule.root_free_from);
     EXPECT_EQ(s.schedule.unbiased_silhouette_from, t.schedule.unbiased_silhouette_from);
+    EXPECT_EQ(s.schedule.neus_from, t.schedule.neus_from);
     EXPECT_EQ(s.checkpoint_every, t.checkpoint_every);
     EXPECT_EQ(s.log_every, t.log_every);
   }

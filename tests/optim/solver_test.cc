@@ -134,6 +134,24 @@ TEST(Solver, ShapeAndRootAreHeldAfterABoneReinitialisation) {
   EXPECT_NE(after[6].root, after[5].root);
 }
 
+// schedule.neus_from: the model renders with VolSDF's density until the
+// fraction and with NeuS's from then on.
+TEST(Solver, DensitySwitchesToNeusAtItsFraction) {
+  const Dataset& data = TinyDataset();
+  SolverConfig config = TinyConfig(StepRule::kAdam, 4);
+  config.stages[0].schedule.neus_from = 0.5;  // batches 2 and 3 with NeuS
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  ASSERT_EQ(solver.model().options().density, DensityModel::kVolSdf);
+  std::vector<DensityModel> density;
+  SolveOptions options = options_quiet();
+  options.on_batch = [&](const BatchProgress&, const Model& model) {
+    density.push_back(model.options().density);
+  };
+  solver.Run(options);
+  EXPECT_EQ(density, (std::vector<DensityModel>{DensityModel::kVolSdf, DensityModel::kVolSdf,
+                                                DensityModel::kNeus, DensityModel::kNeus}));
+}
+
 // The temporal step basis with as many cosines as frames is the orthonormal
 // DCT-II: a change of coordinates, no loss of freedom. With fewer, a frame's
 // squared basis values still sum to about 1 (its step is about lr).

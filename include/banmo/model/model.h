@@ -106,6 +106,9 @@ class Model {
   // Coarse-to-fine annealing of the field's position encoding
   // (PositionalEncoding::SetAnnealing); not a parameter, not saved.
   void SetFieldAnnealing(double alpha) { field_->SetAnnealing(alpha); }
+  // The density model from now on (schedule.neus_from switches to NeuS
+  // part-way; the model file records the current one).
+  void SetDensity(DensityModel density) { options_.density = density; }
   int num_bones() const { return options_.num_bones; }
   int num_videos() const { return static_cast<int>(videos_.size()); }
   // Scene scale s: a length of the model times s is in dataset units.

@@ -163,6 +163,11 @@ struct ScheduleConfig {
   // pixels' importance weights, as under sampling.unbiased_silhouette
   // (>= 1: never; that key on means from the start).
   double unbiased_silhouette_from = 1.0;
+  // Fraction of the stage from which the model renders with NeuS's density
+  // instead of VolSDF's (model.density), to the end of the solve: the
+  // silhouette then fits the zero level set, without VolSDF's shell
+  // (>= 1: never).
+  double neus_from = 1.0;
 };
 
 // Per-frame root-pose solves (docs/solver.md, "Pose solves"): at the given
