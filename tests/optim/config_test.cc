@@ -148,6 +148,11 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   EXPECT_TRUE(s3.sampling.importance_depth);
   EXPECT_EQ(s3.sampling.active_fraction, 0.1);
   EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), G::kRoot), s3.constant.end());
+  // ... rendered with NeuS's density and unbiased silhouettes (VolSDF before).
+  EXPECT_EQ(c.model.density, DensityModel::kVolSdf);
+  EXPECT_EQ(s3.schedule.neus_from, 0.0);
+  EXPECT_TRUE(s3.sampling.unbiased_silhouette);
+  EXPECT_GE(c.stages[0].schedule.neus_from, 1.0);
   // The defaults block reached every stage.
   for (const StageConfig& s : c.stages) {
     EXPECT_EQ(s.batch_rays, 512);
