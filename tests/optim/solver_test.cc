@@ -399,6 +399,18 @@ TEST(Solver, ResumeAtABoneReinitBatchReinitializes) {
   ExpectResumeEqualsStraight(config, {3}, "banmo_resume_reinit_test");
 }
 
+// The density switch and the freeze after a re-initialisation depend only
+// on the batch (and the model file records the density): runs stopped at
+// the switch, inside the freeze and after both resume to the uninterrupted
+// result.
+TEST(Solver, ResumeAcrossTheDensitySwitchAndAFreezeIsBitwiseIdentical) {
+  SolverConfig config = TinyConfig(StepRule::kAdam, 8);
+  config.stages[0].schedule.bone_reinit_at = {0.25};      // batch 2
+  config.stages[0].schedule.freeze_after_reinit = 0.375;  // batches 2-4
+  config.stages[0].schedule.neus_from = 0.5;              // batch 4 on
+  ExpectResumeEqualsStraight(config, {3, 4, 6}, "banmo_resume_neus_freeze_test");
+}
+
 // Pose solves (with the search) draw from the run's RNG and drop the root
 // Adam moments: a run stopped at their batch and one stopped after them both
 // resume to the uninterrupted result. The solves also report every frame.
