@@ -221,7 +221,7 @@ void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunConte
 
   // ---- The minibatch. ----
   sp->ClearMinibatch();
-  sp->ScheduleGroups(fraction);
+  sp->ScheduleGroups(batch_index);
   std::vector<Ray> rays = SampleRays(stage, fraction, sp->batch(), &c->sampler, &state->rng);
   const Eigen::Matrix3Xd grid =
       UniformPoints(bounds_, stage.sampling.match_grid_points, &state->rng);
@@ -358,12 +358,12 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
     }
   }
   for (double at : stage.schedule.bone_reinit_at) {
-    if (model.num_bones() > 0 && batch_index == static_cast<int>(std::lround(at * stage.batches))) {
+    if (model.num_bones() > 0 && batch_index == stage.BatchAt(at)) {
       ReinitializeBones(stage.schedule.bone_reinit_keep_motion, stage.schedule.bone_sites,
                         c->state);
-      const long freeze = std::lround(stage.schedule.freeze_after_reinit * stage.batches);
+      const int freeze = stage.BatchAt(stage.schedule.freeze_after_reinit);
       if (!c->options.quiet && freeze > 0) {
-        std::printf("[%s] bones re-initialised; shape, appearance and root held for %ld batches\n",
+        std::printf("[%s] bones re-initialised; shape, appearance and root held for %d batches\n",
                     stage.name.c_str(), freeze);
         std::fflush(stdout);
       }
@@ -372,14 +372,13 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
   // Automatic model sizing (optim/auto_size.h), first stage only.
   const AutoSizeOptions& auto_size = config_.model.auto_size;
   for (double at : auto_size.grow_at) {
-    if (!auto_size.enabled || run.index != 0 ||
-        batch_index != static_cast<int>(std::lround(at * stage.batches))) {
+    if (!auto_size.enabled || run.index != 0 || batch_index != stage.BatchAt(at)) {
       continue;
     }
     Grow(batch_index, run, sp, c, result);
   }
   for (double at : stage.pose_solve.at) {
-    if (batch_index == static_cast<int>(std::lround(at * stage.batches))) {
+    if (batch_index == stage.BatchAt(at)) {
       SolvePoses(batch_index, run, sp, c, result);
     }
   }

@@ -1,7 +1,6 @@
 #include "stage_problem.h"
 
 #include <algorithm>
-#include <cmath>
 
 #include "banmo/deform/bones.h"
 #include "banmo/geometry/pose_manifold.h"
@@ -127,24 +126,22 @@ void StageProblem::HoldGroup(ParameterGroup g, bool hold) {
   }
 }
 
-bool StageProblem::FrozenAfterReinit(double fraction) const {
+bool StageProblem::FrozenAfterReinit(int batch_index) const {
   const ScheduleConfig& schedule = stage_.schedule;
   if (!(schedule.freeze_after_reinit > 0.0)) return false;
-  // The batches the solver re-initialises at (Solver::RunSchedules) and the
-  // batches of the freeze after them, counted as the schedules count.
-  const int batches = std::max(1, stage_.batches);
-  const long batch = std::lround(fraction * batches);
-  const long length = std::lround(schedule.freeze_after_reinit * batches);
+  // From each batch the solver re-initialises at (Solver::RunSchedules).
+  const int length = stage_.BatchAt(schedule.freeze_after_reinit);
   for (double at : schedule.bone_reinit_at) {
-    const long start = std::lround(at * batches);
-    if (batch >= start && batch < start + length) return true;
+    const int start = stage_.BatchAt(at);
+    if (batch_index >= start && batch_index < start + length) return true;
   }
   return false;
 }
 
-void StageProblem::ScheduleGroups(double fraction) {
+void StageProblem::ScheduleGroups(int batch_index) {
   using G = ParameterGroup;
-  const bool frozen = model_.num_bones() > 0 && FrozenAfterReinit(fraction);
+  const double fraction = static_cast<double>(batch_index) / std::max(1, stage_.batches);
+  const bool frozen = model_.num_bones() > 0 && FrozenAfterReinit(batch_index);
   if (stage_.schedule.freeze_after_reinit > 0.0) {
     for (G g : {G::kSdf, G::kColor, G::kEmbedding, G::kLogBeta, G::kAppearance}) {
       HoldGroup(g, frozen);

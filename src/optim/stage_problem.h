@@ -43,7 +43,7 @@ class StageProblem {
   void AddModelBlocks();
   // Drops every residual and parameter block (before the model grows).
   void RemoveAllBlocks();
-  // The groups a stage frees part-way, at `fraction` of the stage:
+  // The groups a stage frees part-way, at batch `batch_index` of the stage:
   // - the root corrections (schedule.root_free_from) are held constant
   //   before their fraction;
   // - delta skinning (schedule.delta_skinning_from): before the fraction its
@@ -52,7 +52,7 @@ class StageProblem {
   // - shape, appearance and root poses are held constant for
   //   schedule.freeze_after_reinit of the stage after each bone
   //   re-initialisation.
-  void ScheduleGroups(double fraction);
+  void ScheduleGroups(int batch_index);
 
   // Removes the previous minibatch's residual blocks.
   void ClearMinibatch();
@@ -78,8 +78,8 @@ class StageProblem {
   bool IsMlpWeights(const double* block) const;
 
  private:
-  // Whether `fraction` falls in the freeze after a bone re-initialisation.
-  bool FrozenAfterReinit(double fraction) const;
+  // Whether the batch falls in the freeze after a bone re-initialisation.
+  bool FrozenAfterReinit(int batch_index) const;
   // Holds group g constant (or frees it, unless the stage holds it).
   void HoldGroup(ParameterGroup g, bool hold);
   void AddBlock(ParameterGroup group, double* data, int size,

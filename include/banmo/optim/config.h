@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -193,6 +194,8 @@ struct PoseSolveConfig {
 struct StageConfig {
   std::string name = "stage";
   int batches = 100;  // minibatches of the stage (its steps; config key `batches`)
+  // The batch at which a schedule's fraction of the stage fires.
+  int BatchAt(double fraction) const { return static_cast<int>(std::lround(fraction * batches)); }
   StepRule step_rule = StepRule::kAdam;
   int batch_rays = 1024;
   int samples_per_ray = 32;
