@@ -11,6 +11,7 @@
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/load_options.h"
+#include "banmo/optim/root_init_smoothing.h"
 #include "banmo/optim/root_pose_error.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
@@ -78,7 +79,7 @@ int RunSolve(int argc, char** argv) {
   }
 
   Timer timer;
-  const Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
+  Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
   std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
               dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
   if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(dataset)) {
@@ -86,6 +87,25 @@ int RunSolve(int argc, char** argv) {
         "banmo solve: initial root poses: rotation error %.2f deg mean, %.2f deg p90 against the "
         "ground truth\n",
         e->mean_deg, e->p90_deg);
+  }
+  // Deterministic, so a resumed solve gets the same tracks (and the same
+  // object centre and scene scale from them).
+  if (config.model.root_init_smoothing.enabled) {
+    const std::vector<RootTrackSmoothing> smoothing =
+        SmoothRootPoseInit(config.model.root_init_smoothing, &dataset);
+    for (size_t v = 0; v < smoothing.size(); ++v) {
+      const RootTrackSmoothing& s = smoothing[v];
+      std::printf(
+          "banmo solve: root-pose smoothing (model.root_init_smoothing), video %zu: noise %.2f "
+          "deg estimated, poses turned by %.2f deg mean, %.2f max (%d iterations)\n",
+          v, s.noise_deg, s.mean_change_deg, s.max_change_deg, s.iterations);
+    }
+    if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(dataset)) {
+      std::printf(
+          "banmo solve: smoothed root poses: rotation error %.2f deg mean, %.2f deg p90 against "
+          "the ground truth\n",
+          e->mean_deg, e->p90_deg);
+    }
   }
   // Inputs are valid: only now is anything written.
   MakeDirectories(out_dir);

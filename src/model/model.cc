@@ -59,6 +59,16 @@ void ModelOptions::Check() const {
                     "and color_width (",
                     std::max(field.sdf_width, field.color_width), "), got ", auto_size.max_width);
   }
+  const RootSmoothingOptions& rs = root_init_smoothing;
+  if (!(rs.acceleration_deg > 0) || !std::isfinite(rs.acceleration_deg)) {
+    ThrowInputError(
+        "model.root_init_smoothing.acceleration_deg: expected a finite number > 0, got ",
+        rs.acceleration_deg);
+  }
+  if (!(rs.robust_sigmas > 0) || !std::isfinite(rs.robust_sigmas)) {
+    ThrowInputError("model.root_init_smoothing.robust_sigmas: expected a finite number > 0, got ",
+                    rs.robust_sigmas);
+  }
   if (delta_skinning.enabled) {
     delta_skinning.Check();
     if (num_bones < 1) {

@@ -436,6 +436,10 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"model.auto_size.error_ratio",
        [&](SolverConfig* c) { c->model.auto_size.error_ratio = 0.9; }},
       {"model.auto_size.eval_rays", [&](SolverConfig* c) { c->model.auto_size.eval_rays = 0; }},
+      {"model.root_init_smoothing.acceleration_deg",
+       [&](SolverConfig* c) { c->model.root_init_smoothing.acceleration_deg = 0; }},
+      {"model.root_init_smoothing.robust_sigmas",
+       [&](SolverConfig* c) { c->model.root_init_smoothing.robust_sigmas = -1; }},
       {"model.auto_size.max_width", [&](SolverConfig* c) { c->model.auto_size.max_width = -1; }},
       {"model.auto_size.max_width",
        [&](SolverConfig* c) {
@@ -589,6 +593,9 @@ SolverConfig EveryFieldChanged() {
   m.auto_size.error_ratio = 2.25;
   m.auto_size.eval_rays = 1000;
   m.auto_size.max_width = 96;
+  m.root_init_smoothing.enabled = true;
+  m.root_init_smoothing.acceleration_deg = 0.1 / 3.0;
+  m.root_init_smoothing.robust_sigmas = 2.5;
   c.seed = 123456789u;
   c.threads = 3;
   for (int i = 0; i < 2; ++i) {
@@ -696,6 +703,10 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
   EXPECT_EQ(a.model.auto_size.error_ratio, b.model.auto_size.error_ratio);
   EXPECT_EQ(a.model.auto_size.eval_rays, b.model.auto_size.eval_rays);
   EXPECT_EQ(a.model.auto_size.max_width, b.model.auto_size.max_width);
+  EXPECT_EQ(a.model.root_init_smoothing.enabled, b.model.root_init_smoothing.enabled);
+  EXPECT_EQ(a.model.root_init_smoothing.acceleration_deg,
+            b.model.root_init_smoothing.acceleration_deg);
+  EXPECT_EQ(a.model.root_init_smoothing.robust_sigmas, b.model.root_init_smoothing.robust_sigmas);
   EXPECT_EQ(a.seed, b.seed);
   EXPECT_EQ(a.threads, b.threads);
   ASSERT_EQ(a.stages.size(), b.stages.size());

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
 
 #include "../common/run_banmo.h"
 
@@ -45,6 +46,38 @@ TEST(SolveCommand, ResumeWithoutCheckpointIsAnError) {
                         "/problems/tiny.yaml --out " + dir + "/out --resume");
   EXPECT_EQ(r.exit_code, 2) << r.out;
   EXPECT_NE(r.out.find("checkpoint"), std::string::npos) << r.out;
+}
+
+// model.root_init_smoothing: `banmo solve` smooths a synthetic dataset's
+// noisy root poses before the model is made, says so per video, and reports
+// the smoothed poses' error, lower than the rough ones' (a one-batch solve).
+TEST(SolveCommand, RootInitSmoothingIsReportedAndLowersThePoseError) {
+  const std::string dir = Fresh("smoothing");
+  const auto s = testing::RunBanmo(
+      "synth --videos 1 --frames 12 --size 32 --gaps 1 --pose-noise 40 --pose-noise-model "
+      "gaussian --out " +
+      dir + "/data");
+  ASSERT_EQ(s.exit_code, 0) << s.out;
+  std::ofstream(dir + "/smooth.yaml")
+      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
+         "  root_init_smoothing: {enabled: true}\n"
+         "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
+         "stages: [{name: one, batches: 1}]\n";
+  const auto r = testing::RunBanmo("solve --data " + dir + "/data --config " + dir +
+                                   "/smooth.yaml --out " + dir + "/out --no-extract --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("root-pose smoothing (model.root_init_smoothing), video 0: noise "),
+            std::string::npos)
+      << r.out;
+  auto error_after = [&](const std::string& label) {
+    const size_t at = r.out.find(label + " root poses: rotation error ");
+    EXPECT_NE(at, std::string::npos) << label << "\n" << r.out;
+    return at == std::string::npos ? 0.0 : std::stod(r.out.substr(r.out.find("error ", at) + 6));
+  };
+  const double rough = error_after("initial");
+  const double smoothed = error_after("smoothed");
+  EXPECT_GT(rough, 25.0);
+  EXPECT_LT(smoothed, 0.75 * rough);
 }
 
 TEST(SolveCommand, HelpListsTheOptions) {

@@ -41,6 +41,7 @@
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/model/auto_size_options.h"
+#include "banmo/model/root_smoothing_options.h"
 #include "banmo/volume/density_model.h"
 
 namespace banmo {
@@ -64,6 +65,9 @@ struct ModelOptions {
   // rig's origin is. false: the root frame as it is.
   bool recentre = true;
   AutoSizeOptions auto_size;  // automatic growth of B and the MLP widths
+  // Temporal smoothing of the dataset's rough root poses before the model is
+  // made from them (`banmo solve`; optim/root_init_smoothing.h).
+  RootSmoothingOptions root_init_smoothing;
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;

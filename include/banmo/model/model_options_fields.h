@@ -57,6 +57,13 @@ void VisitFields(V& v, AutoSizeOptions& o) {
 }
 
 template <class V>
+void VisitFields(V& v, RootSmoothingOptions& o) {
+  v("enabled", o.enabled);
+  v("acceleration_deg", o.acceleration_deg);
+  v("robust_sigmas", o.robust_sigmas);
+}
+
+template <class V>
 void VisitFields(V& v, ModelOptions& o) {
   v("field", o.field);
   v("num_bones", o.num_bones);
@@ -68,6 +75,7 @@ void VisitFields(V& v, ModelOptions& o) {
   v("scene_scale", o.scene_scale);
   v("recentre", o.recentre);
   v("auto_size", o.auto_size);
+  v("root_init_smoothing", o.root_init_smoothing);
 }
 
 }  // namespace banmo

@@ -1,0 +1,156 @@
+#include "banmo/optim/root_init_smoothing.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "banmo/util/logging.h"
+
+namespace banmo {
+namespace {
+
+constexpr double kRadPerDeg = M_PI / 180.0;
+// The median of |x| for x ~ N(0, I_3): the square root of chi^2_3's median
+// (2.3660).
+constexpr double kChi3MedianNorm = 1.5382;
+// The noise estimate's floor (rad): a constant track (identity poses) has
+// none, and its data term must stay finite.
+constexpr double kMinNoise = 1e-4;
+
+// q0 * Exp(d) (object-side rotation vector d), Ceres' [w, x, y, z] order.
+template <typename T>
+void Perturbed(const double* q0, const T* d, T* q) {
+  T e[4];
+  ceres::AngleAxisToQuaternion(d, e);
+  const T a[4] = {T(q0[0]), T(q0[1]), T(q0[2]), T(q0[3])};
+  ceres::QuaternionProduct(a, e, q);
+}
+
+// Log(Ra^T Rb) as a rotation vector; the shorter of q and -q
+// (ceres::QuaternionToAngleAxis returns angles in [-pi, pi]).
+template <typename T>
+void Relative(const T* qa, const T* qb, T* v) {
+  const T conj[4] = {qa[0], -qa[1], -qa[2], -qa[3]};
+  T r[4];
+  ceres::QuaternionProduct(conj, qb, r);
+  ceres::QuaternionToAngleAxis(r, v);
+}
+
+// A frame's data term: its correction d in units of the noise.
+struct TrackData {
+  explicit TrackData(double inv_sigma) : inv_sigma(inv_sigma) {}
+  template <typename T>
+  bool operator()(const T* d, T* r) const {
+    for (int k = 0; k < 3; ++k) r[k] = d[k] * inv_sigma;
+    return true;
+  }
+  double inv_sigma;
+};
+
+// The prior: the second difference of the rotation track at frames
+// (t-1, t, t+1), in units of the expected acceleration.
+struct TrackAcceleration {
+  TrackAcceleration(const double* qa, const double* qb, const double* qc, double inv_accel)
+      : inv_accel(inv_accel) {
+    std::copy(qa, qa + 4, this->qa);
+    std::copy(qb, qb + 4, this->qb);
+    std::copy(qc, qc + 4, this->qc);
+  }
+  template <typename T>
+  bool operator()(const T* da, const T* db, const T* dc, T* r) const {
+    T a[4], b[4], c[4], v0[3], v1[3];
+    Perturbed(qa, da, a);
+    Perturbed(qb, db, b);
+    Perturbed(qc, dc, c);
+    Relative(a, b, v0);
+    Relative(b, c, v1);
+    for (int k = 0; k < 3; ++k) r[k] = (v1[k] - v0[k]) * inv_accel;
+    return true;
+  }
+  double qa[4], qb[4], qc[4];
+  double inv_accel;
+};
+
+Eigen::Vector4d UnitQuaternion(const Pose& p) { return p.segment<4>(kPoseQw).normalized(); }
+
+}  // namespace
+
+RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vector<Pose>* poses) {
+  CHECK(options.acceleration_deg > 0 && options.robust_sigmas > 0);
+  RootTrackSmoothing out;
+  const int n = static_cast<int>(poses->size());
+  if (n < 3) return out;
+  std::vector<Eigen::Vector4d> q0(n);
+  for (int t = 0; t < n; ++t) q0[t] = UnitQuaternion((*poses)[t]);
+
+  // The rough track's noise from its second differences: for i.i.d.
+  // per-axis noise N(0, sigma^2) each axis of v_t - v_{t-1} has variance
+  // 6 sigma^2 (to first order), so |.| has median sqrt(6) 1.538 sigma.
+  std::vector<double> accel;
+  const double zero[3] = {0, 0, 0};
+  for (int t = 1; t + 1 < n; ++t) {
+    const TrackAcceleration f(q0[t - 1].data(), q0[t].data(), q0[t + 1].data(), 1.0);
+    Eigen::Vector3d r;
+    f(zero, zero, zero, r.data());
+    accel.push_back(r.norm());
+  }
+  std::nth_element(accel.begin(), accel.begin() + accel.size() / 2, accel.end());
+  const double sigma =
+      std::max(kMinNoise, accel[accel.size() / 2] / (std::sqrt(6.0) * kChi3MedianNorm));
+  out.noise_deg = sigma / kRadPerDeg;
+
+  std::vector<Eigen::Vector3d> d(n, Eigen::Vector3d::Zero());
+  ceres::Problem problem;
+  for (int t = 0; t < n; ++t) {
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<TrackData, 3, 3>(new TrackData(1.0 / sigma)),
+        new ceres::CauchyLoss(options.robust_sigmas), d[t].data());
+  }
+  const double inv_accel = 1.0 / (options.acceleration_deg * kRadPerDeg);
+  for (int t = 1; t + 1 < n; ++t) {
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<TrackAcceleration, 3, 3, 3, 3>(
+            new TrackAcceleration(q0[t - 1].data(), q0[t].data(), q0[t + 1].data(), inv_accel)),
+        nullptr, d[t - 1].data(), d[t].data(), d[t + 1].data());
+  }
+  ceres::Solver::Options so;
+  // Banded normal equations (each frame couples to its two neighbours on
+  // either side); Eigen's sparse Cholesky is always available.
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+  so.max_num_iterations = 100;
+  so.function_tolerance = 1e-10;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  out.iterations = static_cast<int>(summary.iterations.size()) - 1;
+
+  double total = 0.0;
+  for (int t = 0; t < n; ++t) {
+    Eigen::Vector4d q;
+    Perturbed(q0[t].data(), d[t].data(), q.data());
+    (*poses)[t].segment<4>(kPoseQw) = q.normalized();
+    const double change = d[t].norm() / kRadPerDeg;
+    total += change;
+    out.max_change_deg = std::max(out.max_change_deg, change);
+  }
+  out.mean_change_deg = total / n;
+  return out;
+}
+
+std::vector<RootTrackSmoothing> SmoothRootPoseInit(const RootSmoothingOptions& options,
+                                                   Dataset* dataset) {
+  std::vector<RootTrackSmoothing> out;
+  for (Video& video : dataset->videos) {
+    std::vector<Pose> track;
+    for (const Frame& f : video.frames) track.push_back(f.root_pose_init);
+    out.push_back(SmoothRootTrack(options, &track));
+    for (size_t t = 0; t < video.frames.size(); ++t) video.frames[t].root_pose_init = track[t];
+  }
+  return out;
+}
+
+}  // namespace banmo
