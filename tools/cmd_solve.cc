@@ -95,6 +95,13 @@ int RunSolve(int argc, char** argv) {
         SmoothRootPoseInit(config.model.root_init_smoothing, &dataset);
     for (size_t v = 0; v < smoothing.size(); ++v) {
       const RootTrackSmoothing& s = smoothing[v];
+      if (!s.smoothed) {
+        std::printf(
+            "banmo solve: root-pose smoothing (model.root_init_smoothing), video %zu: already "
+            "smooth (largest second difference %.2f deg <= acceleration_deg), left as it is\n",
+            v, s.max_acceleration_deg);
+        continue;
+      }
       std::printf(
           "banmo solve: root-pose smoothing (model.root_init_smoothing), video %zu: noise %.2f "
           "deg estimated, poses turned by %.2f deg mean, %.2f max (%d iterations)\n",

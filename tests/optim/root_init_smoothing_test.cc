@@ -62,14 +62,27 @@ TEST(RootInitSmoothing, ExactPosesStayPut) {
   const std::vector<Pose> truth = SmoothTrack(24);
   std::vector<Pose> poses = truth;
   const RootTrackSmoothing r = SmoothRootTrack(RootSmoothingOptions(), &poses);
-  // The track's own acceleration reads as about 0.1 deg of noise, far below
-  // the prior's 2 deg: the data term keeps every pose within a few hundredths
-  // of a degree (0.1 allows for the nod).
+  // The track's second differences (below 0.5 deg) are within the prior's
+  // 2 deg: no noise to remove, the poses are left bit for bit.
   EXPECT_LT(r.noise_deg, 0.5);
-  EXPECT_LT(r.max_change_deg, 0.1);
+  EXPECT_FALSE(r.smoothed);
+  EXPECT_LT(r.max_acceleration_deg, 0.5);
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_EQ(r.max_change_deg, 0.0);
+  EXPECT_EQ(poses, truth);
+
+  // Noise of 1 deg per axis: second differences of about 4 deg, above the
+  // prior's 2, so the track is smoothed; with noise this close to the
+  // prior's scale it gains little (about 15 % here), but it must not lose.
+  std::vector<Pose> noisy = Noisy(truth, 1.0, 4);
+  const double before = MeanErrorDeg(noisy, truth);
+  const RootTrackSmoothing s = SmoothRootTrack(RootSmoothingOptions(), &noisy);
+  EXPECT_TRUE(s.smoothed);
+  EXPECT_GT(s.max_acceleration_deg, 2.0);
+  EXPECT_GT(s.iterations, 0);
+  EXPECT_LT(MeanErrorDeg(noisy, truth), before);
   for (size_t t = 0; t < truth.size(); ++t) {
-    EXPECT_LT(AngleDeg(poses[t], truth[t]), 0.1) << t;
-    EXPECT_EQ(poses[t].tail<3>(), truth[t].tail<3>()) << "translations are left as they are";
+    EXPECT_EQ(noisy[t].tail<3>(), truth[t].tail<3>()) << "translations are left as they are";
   }
 }
 

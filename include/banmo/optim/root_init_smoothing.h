@@ -16,9 +16,11 @@
 // stops pulling it), `a` the prior's acceleration and sigma the noise of
 // the rough track, estimated from it: the median of |v_t - v_{t-1}| over
 // the rough track, divided by that of 6 sigma^2 chi^2_3 (sqrt(6) x 1.538).
-// Exact poses give a sigma near zero, so their data term dominates and they
-// stay put (on `quad`: 0.01 deg); noisy ones are pulled onto a track whose
-// acceleration is about `a`. Translations are left as they are.
+// A track none of whose second differences exceeds `a` is already as
+// smooth as the prior expects and is left exactly as it is (exact poses:
+// the solve is the same as without smoothing); others are pulled onto a
+// track whose acceleration is about `a`, exact ones with a stiff data term
+// (hundredths of a degree on `quad`). Translations are left as they are.
 #pragma once
 
 #include <vector>
@@ -30,10 +32,12 @@
 namespace banmo {
 
 struct RootTrackSmoothing {
-  double noise_deg = 0.0;        // sigma, the estimated per-axis noise of the rough track
-  double mean_change_deg = 0.0;  // mean rotation between a rough and a smoothed pose
+  double noise_deg = 0.0;             // sigma, the estimated per-axis noise of the rough track
+  double max_acceleration_deg = 0.0;  // the rough track's largest second difference
+  bool smoothed = false;              // false: too short, or already smooth (left as it was)
+  double mean_change_deg = 0.0;       // mean rotation between a rough and a smoothed pose
   double max_change_deg = 0.0;
-  int iterations = 0;  // Levenberg-Marquardt iterations
+  int iterations = 0;  // Levenberg-Marquardt iterations (0: left as it was)
 };
 
 // Smooths the rotations of one track of camera_from_root poses (in frame
