@@ -153,8 +153,8 @@ RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vec
   // frame sits in a minimum of its own robust data term, and tracks with
   // errors of 90 deg and more stay there (on `quad` with Gaussian noise of
   // mean 90 deg: 79 deg mean error left from the rough poses, 46 from the
-  // running median; at 50 deg both give 17). Exact tracks return to their
-  // poses: their data term is the stiff one.
+  // running median; at 50 deg both give 17). A track exact but for a few
+  // frames returns to its poses: its data term is the stiff one.
   constexpr int kMedianHalfWidth = 3;
   std::vector<Eigen::Vector3d> d(n);
   for (int t = 0; t < n; ++t) {
