@@ -75,40 +75,32 @@ struct TrackAcceleration {
 
 Eigen::Vector4d UnitQuaternion(const Pose& p) { return p.segment<4>(kPoseQw).normalized(); }
 
-Eigen::Quaterniond AsQuaternion(const Eigen::Vector4d& q) {
-  return Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
-}
-
-// Log(a^-1 b) as a rotation vector, the shorter way round.
-Eigen::Vector3d LogRelative(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
-  const Eigen::Vector4d qa(a.w(), a.x(), a.y(), a.z()), qb(b.w(), b.x(), b.y(), b.z());
+// Log(a^-1 b) of two unit quaternions in Ceres' order, the shorter way round.
+Eigen::Vector3d LogRelative(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
   Eigen::Vector3d v;
-  Relative(qa.data(), qb.data(), v.data());
+  Relative(a.data(), b.data(), v.data());
   return v;
-}
-
-Eigen::Quaterniond Exp(const Eigen::Vector3d& w) {
-  Eigen::Vector4d q;
-  ceres::AngleAxisToQuaternion(w.data(), q.data());
-  return AsQuaternion(q);
 }
 
 // The geometric median (L1 mean) of the rotations q0[lo..hi] by Weiszfeld's
 // iteration in the tangent space at the current estimate, started at q0[t]:
 // a few frames far off do not drag it as an average would. Weights
 // 1 / max(|d|, 1e-3 rad); 30 iterations.
-Eigen::Quaterniond WindowMedian(const std::vector<Eigen::Vector4d>& q0, int t, int lo, int hi) {
-  Eigen::Quaterniond r = AsQuaternion(q0[t]);
+Eigen::Vector4d WindowMedian(const std::vector<Eigen::Vector4d>& q0, int t, int lo, int hi) {
+  Eigen::Vector4d r = q0[t];
   for (int it = 0; it < 30; ++it) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     double weights = 0.0;
     for (int k = lo; k <= hi; ++k) {
-      const Eigen::Vector3d d = LogRelative(r, AsQuaternion(q0[k]));
+      const Eigen::Vector3d d = LogRelative(r, q0[k]);
       const double w = 1.0 / std::max(d.norm(), 1e-3);
       sum += w * d;
       weights += w;
     }
-    r = (r * Exp(sum / weights)).normalized();
+    const Eigen::Vector3d step = sum / weights;
+    Eigen::Vector4d moved;
+    Perturbed(r.data(), step.data(), moved.data());
+    r = moved.normalized();
   }
   return r;
 }
@@ -158,9 +150,9 @@ RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vec
   constexpr int kMedianHalfWidth = 3;
   std::vector<Eigen::Vector3d> d(n);
   for (int t = 0; t < n; ++t) {
-    const Eigen::Quaterniond m = WindowMedian(q0, t, std::max(0, t - kMedianHalfWidth),
-                                              std::min(n - 1, t + kMedianHalfWidth));
-    d[t] = LogRelative(AsQuaternion(q0[t]), m);
+    const Eigen::Vector4d m = WindowMedian(q0, t, std::max(0, t - kMedianHalfWidth),
+                                           std::min(n - 1, t + kMedianHalfWidth));
+    d[t] = LogRelative(q0[t], m);
   }
   ceres::Problem problem;
   for (int t = 0; t < n; ++t) {
@@ -193,10 +185,10 @@ RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vec
   for (int t = 0; t < n; ++t) {
     Eigen::Vector4d q;
     Perturbed(q0[t].data(), d[t].data(), q.data());
-    (*poses)[t].segment<4>(kPoseQw) = q.normalized();
+    q.normalize();
+    (*poses)[t].segment<4>(kPoseQw) = q;
     // The angle of Exp(d_t), in [0, 180] deg (|d_t| may exceed pi).
-    const double change =
-        AsQuaternion(q0[t]).angularDistance(AsQuaternion(q.normalized())) / kRadPerDeg;
+    const double change = LogRelative(q0[t], q).norm() / kRadPerDeg;
     total += change;
     out.max_change_deg = std::max(out.max_change_deg, change);
   }
