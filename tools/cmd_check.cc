@@ -40,8 +40,9 @@ void PrintNotes(const Dataset& dataset) {
     if (all_same) {
       std::printf(
           "note: video %s: every initial root pose is the same (banmo prepare without "
-          "--poses?): the solver starts every frame from it\n",
-          v.name.c_str());
+          "--poses?): the solver starts every frame from it, unless "
+          "model.root_init_registration registers the frames from their features%s\n",
+          v.name.c_str(), v.present.features ? "" : " (this video has none)");
     }
   }
 }

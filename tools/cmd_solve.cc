@@ -1,6 +1,7 @@
 // banmo solve: reconstruct an animatable model from a dataset by running the
 // stages of a config (docs/solver.md, docs/config.md).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -11,6 +12,7 @@
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/load_options.h"
+#include "banmo/optim/root_init_registration.h"
 #include "banmo/optim/root_init_smoothing.h"
 #include "banmo/optim/root_pose_error.h"
 #include "banmo/optim/solver.h"
@@ -88,8 +90,54 @@ int RunSolve(int argc, char** argv) {
         "ground truth\n",
         e->mean_deg, e->p90_deg);
   }
-  // Deterministic, so a resumed solve gets the same tracks (and the same
-  // object centre and scene scale from them).
+  // Registration and smoothing are deterministic, so a resumed solve gets the
+  // same tracks (and the same object centre and scene scale from them).
+  if (config.model.root_init_registration.enabled) {
+    Timer registration_timer;
+    const RootRegistration r = RegisterRootPoseInit(config.model.root_init_registration, &dataset);
+    if (!r.registered) {
+      std::printf(
+          "banmo solve: root-pose registration (model.root_init_registration): not possible (%s); "
+          "initial root poses left as they are\n",
+          r.reason.c_str());
+    } else {
+      std::printf(
+          "banmo solve: root-pose registration (model.root_init_registration): %d frame(s) "
+          "registered from %d reference features (%.1f observations per frame), factorisation "
+          "%.2f px RMS, bundle adjustment %.2f px median (cost %.4g, depth reversal %.4g; %d "
+          "iterations), %.1f s\n",
+          r.frames, r.references, r.observations_per_frame, r.affine_rms_px, r.median_residual_px,
+          r.cost, r.mirror_cost, r.iterations, registration_timer.Seconds());
+      if (r.ambiguous) {
+        std::printf(
+            "banmo solve: warning: the registration's depth reversal fits almost as well (cost "
+            "ratio %.2f > 0.8): the object may deform too much for a rigid registration\n",
+            r.cost / r.mirror_cost);
+      }
+      for (size_t v = 0; v < r.videos.size(); ++v) {
+        const VideoRegistration& c = r.videos[v];
+        std::printf(
+            "banmo solve: root-pose registration, video %zu: noise %.2f deg initial, %.2f "
+            "registered: %s\n",
+            v, c.initial_noise_deg, c.registered_noise_deg,
+            c.replaced ? "initial poses replaced" : "initial poses kept");
+      }
+      if (r.filled > 0) {
+        std::printf("banmo solve: root-pose registration: %d frame(s) given a neighbour's pose\n",
+                    r.filled);
+      }
+      const bool replaced = std::any_of(r.videos.begin(), r.videos.end(),
+                                        [](const VideoRegistration& c) { return c.replaced; });
+      const std::optional<RootPoseErrors> e =
+          replaced ? InitialRootPoseErrors(dataset) : std::nullopt;
+      if (e) {
+        std::printf(
+            "banmo solve: registered root poses: rotation error %.2f deg mean, %.2f deg p90 "
+            "against the ground truth\n",
+            e->mean_deg, e->p90_deg);
+      }
+    }
+  }
   if (config.model.root_init_smoothing.enabled) {
     const std::vector<RootTrackSmoothing> smoothing =
         SmoothRootPoseInit(config.model.root_init_smoothing, &dataset);

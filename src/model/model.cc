@@ -69,6 +69,11 @@ void ModelOptions::Check() const {
     ThrowInputError("model.root_init_smoothing.robust_sigmas: expected a finite number > 0, got ",
                     rs.robust_sigmas);
   }
+  if (root_init_registration.references < 16 || root_init_registration.references > 5000) {
+    ThrowInputError(
+        "model.root_init_registration.references: expected an integer in [16, 5000], got ",
+        root_init_registration.references);
+  }
   if (delta_skinning.enabled) {
     delta_skinning.Check();
     if (num_bones < 1) {

@@ -105,7 +105,34 @@ Eigen::Vector4d WindowMedian(const std::vector<Eigen::Vector4d>& q0, int t, int 
   return r;
 }
 
+// The noise of a rotation track (radians, at least 3 rotations) from its
+// second differences: for i.i.d. per-axis noise N(0, sigma^2) each axis of
+// v_t - v_{t-1} has variance 6 sigma^2 (to first order), so |.| has median
+// sqrt(6) 1.538 sigma. Also returns the largest second difference.
+double TrackNoise(const std::vector<Eigen::Vector4d>& q0, double* max_accel) {
+  std::vector<double> accel;
+  const double zero[3] = {0, 0, 0};
+  const int n = static_cast<int>(q0.size());
+  for (int t = 1; t + 1 < n; ++t) {
+    const TrackAcceleration f(q0[t - 1].data(), q0[t].data(), q0[t + 1].data(), 1.0);
+    Eigen::Vector3d r;
+    f(zero, zero, zero, r.data());
+    accel.push_back(r.norm());
+  }
+  *max_accel = *std::max_element(accel.begin(), accel.end());
+  std::nth_element(accel.begin(), accel.begin() + accel.size() / 2, accel.end());
+  return accel[accel.size() / 2] / (std::sqrt(6.0) * kChi3MedianNorm);
+}
+
 }  // namespace
+
+double RootTrackNoiseDeg(const std::vector<Pose>& poses) {
+  if (poses.size() < 3) return 0.0;
+  std::vector<Eigen::Vector4d> q(poses.size());
+  for (size_t t = 0; t < poses.size(); ++t) q[t] = UnitQuaternion(poses[t]);
+  double max_accel = 0.0;
+  return TrackNoise(q, &max_accel) / kRadPerDeg;
+}
 
 RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vector<Pose>* poses) {
   CHECK(options.acceleration_deg > 0 && options.robust_sigmas > 0);
@@ -115,21 +142,8 @@ RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vec
   std::vector<Eigen::Vector4d> q0(n);
   for (int t = 0; t < n; ++t) q0[t] = UnitQuaternion((*poses)[t]);
 
-  // The rough track's noise from its second differences: for i.i.d.
-  // per-axis noise N(0, sigma^2) each axis of v_t - v_{t-1} has variance
-  // 6 sigma^2 (to first order), so |.| has median sqrt(6) 1.538 sigma.
-  std::vector<double> accel;
-  const double zero[3] = {0, 0, 0};
-  for (int t = 1; t + 1 < n; ++t) {
-    const TrackAcceleration f(q0[t - 1].data(), q0[t].data(), q0[t + 1].data(), 1.0);
-    Eigen::Vector3d r;
-    f(zero, zero, zero, r.data());
-    accel.push_back(r.norm());
-  }
-  const double max_accel = *std::max_element(accel.begin(), accel.end());
-  std::nth_element(accel.begin(), accel.begin() + accel.size() / 2, accel.end());
-  const double sigma =
-      std::max(kMinNoise, accel[accel.size() / 2] / (std::sqrt(6.0) * kChi3MedianNorm));
+  double max_accel = 0.0;
+  const double sigma = std::max(kMinNoise, TrackNoise(q0, &max_accel));
   out.noise_deg = sigma / kRadPerDeg;
   out.max_acceleration_deg = max_accel / kRadPerDeg;
   // A track already as smooth as the prior expects (no second difference

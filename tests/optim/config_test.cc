@@ -440,6 +440,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { c->model.root_init_smoothing.acceleration_deg = 0; }},
       {"model.root_init_smoothing.robust_sigmas",
        [&](SolverConfig* c) { c->model.root_init_smoothing.robust_sigmas = -1; }},
+      {"model.root_init_registration.references",
+       [&](SolverConfig* c) { c->model.root_init_registration.references = 8; }},
       {"model.auto_size.max_width", [&](SolverConfig* c) { c->model.auto_size.max_width = -1; }},
       {"model.auto_size.max_width",
        [&](SolverConfig* c) {
@@ -596,6 +598,9 @@ SolverConfig EveryFieldChanged() {
   m.root_init_smoothing.enabled = true;
   m.root_init_smoothing.acceleration_deg = 0.1 / 3.0;
   m.root_init_smoothing.robust_sigmas = 2.5;
+  m.root_init_registration.enabled = true;
+  m.root_init_registration.always = true;
+  m.root_init_registration.references = 123;
   c.seed = 123456789u;
   c.threads = 3;
   for (int i = 0; i < 2; ++i) {
@@ -707,6 +712,9 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
   EXPECT_EQ(a.model.root_init_smoothing.acceleration_deg,
             b.model.root_init_smoothing.acceleration_deg);
   EXPECT_EQ(a.model.root_init_smoothing.robust_sigmas, b.model.root_init_smoothing.robust_sigmas);
+  EXPECT_EQ(a.model.root_init_registration.enabled, b.model.root_init_registration.enabled);
+  EXPECT_EQ(a.model.root_init_registration.always, b.model.root_init_registration.always);
+  EXPECT_EQ(a.model.root_init_registration.references, b.model.root_init_registration.references);
   EXPECT_EQ(a.seed, b.seed);
   EXPECT_EQ(a.threads, b.threads);
   ASSERT_EQ(a.stages.size(), b.stages.size());

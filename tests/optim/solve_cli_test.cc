@@ -80,6 +80,44 @@ TEST(SolveCommand, RootInitSmoothingIsReportedAndLowersThePoseError) {
   EXPECT_LT(smoothed, 0.75 * rough);
 }
 
+// model.root_init_registration: a video prepared from frames, masks and
+// features without --poses (every root rotation the identity) is registered
+// from its features before the solve (a one-batch solve).
+TEST(SolveCommand, RootInitRegistrationRegistersAPreparedVideoWithoutPoses) {
+  const std::string dir = Fresh("registration");
+  const auto s =
+      testing::RunBanmo("synth --videos 1 --frames 10 --size 64 --gaps 1 --out " + dir + "/synth");
+  ASSERT_EQ(s.exit_code, 0) << s.out;
+  const std::string video = dir + "/synth/video_000";
+  const auto p =
+      testing::RunBanmo("prepare --frames " + video + "/rgb --masks " + video +
+                        "/mask --features " + video + "/features --gaps 1 --out " + dir + "/data");
+  ASSERT_EQ(p.exit_code, 0) << p.out;
+  std::ofstream(dir + "/register.yaml")
+      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
+         "  root_init_registration: {enabled: true}\n"
+         "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
+         "stages: [{name: one, batches: 1}]\n";
+  const auto r = testing::RunBanmo("solve --data " + dir + "/data --config " + dir +
+                                   "/register.yaml --out " + dir + "/out --no-extract --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("root-pose registration (model.root_init_registration): 10 frame(s) "
+                       "registered from 300 reference features"),
+            std::string::npos)
+      << r.out;
+  // Off: the identity poses stay.
+  std::ofstream(dir + "/off.yaml")
+      << "model:\n  num_bones: 2\n"
+         "  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
+         "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: "
+         "{flow_gaps: [1]}}\n"
+         "stages: [{name: one, batches: 1}]\n";
+  const auto off = testing::RunBanmo("solve --data " + dir + "/data --config " + dir +
+                                     "/off.yaml --out " + dir + "/out_off --no-extract --quiet");
+  ASSERT_EQ(off.exit_code, 0) << off.out;
+  EXPECT_EQ(off.out.find("root-pose registration"), std::string::npos) << off.out;
+}
+
 TEST(SolveCommand, HelpListsTheOptions) {
   const auto r = testing::RunBanmo("solve --help");
   EXPECT_EQ(r.exit_code, 0);

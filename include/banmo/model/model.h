@@ -41,6 +41,7 @@
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/model/auto_size_options.h"
+#include "banmo/model/root_registration_options.h"
 #include "banmo/model/root_smoothing_options.h"
 #include "banmo/volume/density_model.h"
 
@@ -68,6 +69,10 @@ struct ModelOptions {
   // Temporal smoothing of the dataset's rough root poses before the model is
   // made from them (`banmo solve`; optim/root_init_smoothing.h).
   RootSmoothingOptions root_init_smoothing;
+  // Registration of the frames from their pixel features when the dataset
+  // has no root poses (`banmo solve`, before the smoothing;
+  // optim/root_init_registration.h).
+  RootRegistrationOptions root_init_registration;
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;

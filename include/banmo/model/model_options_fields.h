@@ -64,6 +64,13 @@ void VisitFields(V& v, RootSmoothingOptions& o) {
 }
 
 template <class V>
+void VisitFields(V& v, RootRegistrationOptions& o) {
+  v("enabled", o.enabled);
+  v("always", o.always);
+  v("references", o.references);
+}
+
+template <class V>
 void VisitFields(V& v, ModelOptions& o) {
   v("field", o.field);
   v("num_bones", o.num_bones);
@@ -76,6 +83,7 @@ void VisitFields(V& v, ModelOptions& o) {
   v("recentre", o.recentre);
   v("auto_size", o.auto_size);
   v("root_init_smoothing", o.root_init_smoothing);
+  v("root_init_registration", o.root_init_registration);
 }
 
 }  // namespace banmo

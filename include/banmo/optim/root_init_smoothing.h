@@ -40,6 +40,11 @@ struct RootTrackSmoothing {
   int iterations = 0;  // Levenberg-Marquardt iterations (0: left as it was)
 };
 
+// The per-axis rotation noise (degrees) of a track of camera_from_root
+// poses in frame order, estimated from its second differences as above (0
+// for fewer than 3 poses or a constant track).
+double RootTrackNoiseDeg(const std::vector<Pose>& poses);
+
 // Smooths the rotations of one track of camera_from_root poses (in frame
 // order) in place; tracks of fewer than 3 poses are left as they are.
 // Translations are unchanged.
