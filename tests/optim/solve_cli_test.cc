@@ -17,6 +17,19 @@ std::string Fresh(const std::string& name) {
   return dir;
 }
 
+// A one-batch solve of dir/data with a tiny model (no extraction) into
+// dir/name; `model_keys` are extra lines of the config's `model:` section.
+testing::CommandResult SolveOneBatch(const std::string& dir, const std::string& name,
+                                     const std::string& model_keys) {
+  std::ofstream(dir + "/" + name + ".yaml")
+      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
+      << model_keys
+      << "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
+         "stages: [{name: one, batches: 1}]\n";
+  return testing::RunBanmo("solve --data " + dir + "/data --config " + dir + "/" + name +
+                           ".yaml --out " + dir + "/" + name + " --no-extract --quiet");
+}
+
 TEST(SolveCommand, UnknownConfigKeyIsAnErrorNamingItAndWritesNothing) {
   const std::string dir = Fresh("key");
   std::filesystem::create_directories(dir);
@@ -58,13 +71,7 @@ TEST(SolveCommand, RootInitSmoothingIsReportedAndLowersThePoseError) {
       "gaussian --out " +
       dir + "/data");
   ASSERT_EQ(s.exit_code, 0) << s.out;
-  std::ofstream(dir + "/smooth.yaml")
-      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
-         "  root_init_smoothing: {enabled: true}\n"
-         "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
-         "stages: [{name: one, batches: 1}]\n";
-  const auto r = testing::RunBanmo("solve --data " + dir + "/data --config " + dir +
-                                   "/smooth.yaml --out " + dir + "/out --no-extract --quiet");
+  const auto r = SolveOneBatch(dir, "smooth", "  root_init_smoothing: {enabled: true}\n");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("root-pose smoothing (model.root_init_smoothing), video 0: noise "),
             std::string::npos)
@@ -93,27 +100,14 @@ TEST(SolveCommand, RootInitRegistrationRegistersAPreparedVideoWithoutPoses) {
       testing::RunBanmo("prepare --frames " + video + "/rgb --masks " + video +
                         "/mask --features " + video + "/features --gaps 1 --out " + dir + "/data");
   ASSERT_EQ(p.exit_code, 0) << p.out;
-  std::ofstream(dir + "/register.yaml")
-      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
-         "  root_init_registration: {enabled: true}\n"
-         "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
-         "stages: [{name: one, batches: 1}]\n";
-  const auto r = testing::RunBanmo("solve --data " + dir + "/data --config " + dir +
-                                   "/register.yaml --out " + dir + "/out --no-extract --quiet");
+  const auto r = SolveOneBatch(dir, "register", "  root_init_registration: {enabled: true}\n");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("root-pose registration (model.root_init_registration): 10 frame(s) "
                        "registered from 300 reference features"),
             std::string::npos)
       << r.out;
   // Off: the identity poses stay.
-  std::ofstream(dir + "/off.yaml")
-      << "model:\n  num_bones: 2\n"
-         "  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
-         "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: "
-         "{flow_gaps: [1]}}\n"
-         "stages: [{name: one, batches: 1}]\n";
-  const auto off = testing::RunBanmo("solve --data " + dir + "/data --config " + dir +
-                                     "/off.yaml --out " + dir + "/out_off --no-extract --quiet");
+  const auto off = SolveOneBatch(dir, "off", "");
   ASSERT_EQ(off.exit_code, 0) << off.out;
   EXPECT_EQ(off.out.find("root-pose registration"), std::string::npos) << off.out;
 }
