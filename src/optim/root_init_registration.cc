@@ -262,7 +262,6 @@ Adjusted Adjust(const Factorisation& f, bool mirrored, const std::vector<Observa
     const Eigen::Quaterniond q(r);
     Pose& p = out.poses[t];
     p << q.w(), q.x(), q.y(), q.z(), f.b[t][0] / s, f.b[t][1] / s, 1.0 / s;
-    if (first < 0) first = t;
   }
   for (const Observation& o : obs) {
     if (!f.frame_ok[o.frame] || !f.point_ok[o.point]) continue;
@@ -271,13 +270,19 @@ Adjusted Adjust(const Factorisation& f, bool mirrored, const std::vector<Observa
     residuals.push_back(problem.AddResidualBlock(cost, &loss, out.poses[o.frame].data(),
                                                  points.col(o.point).data()));
   }
+  // A frame whose observations all see points observed once has no
+  // residual (and keeps its factorisation pose).
   for (int t = 0; t < nf; ++t) {
-    if (!f.frame_ok[t]) continue;
+    if (!problem.HasParameterBlock(out.poses[t].data())) continue;
     problem.SetManifold(out.poses[t].data(), manifold.get());
+    // The first frame fixes the gauge (rotation, origin and, with its
+    // depth, the scale).
+    if (first < 0) {
+      first = t;
+      problem.SetParameterBlockConstant(out.poses[t].data());
+    }
   }
-  // The first frame fixes the gauge (rotation, origin and, with its depth,
-  // the scale).
-  problem.SetParameterBlockConstant(out.poses[first].data());
+  if (first < 0) return out;  // nothing to adjust
   ceres::Solver::Options options;
   options.linear_solver_type = ceres::DENSE_SCHUR;
   options.max_num_iterations = 100;
