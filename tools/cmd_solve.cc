@@ -84,12 +84,17 @@ int RunSolve(int argc, char** argv) {
   Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
   std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
               dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
-  if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(dataset)) {
-    std::printf(
-        "banmo solve: initial root poses: rotation error %.2f deg mean, %.2f deg p90 against the "
-        "ground truth\n",
-        e->mean_deg, e->p90_deg);
-  }
+  // With ground truth (synthetic data): the initial poses' error, after
+  // each step that changes them.
+  auto print_pose_error = [&dataset](const char* label) {
+    if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(dataset)) {
+      std::printf(
+          "banmo solve: %s root poses: rotation error %.2f deg mean, %.2f deg p90 against the "
+          "ground truth\n",
+          label, e->mean_deg, e->p90_deg);
+    }
+  };
+  print_pose_error("initial");
   // Registration and smoothing are deterministic, so a resumed solve gets the
   // same tracks (and the same object centre and scene scale from them).
   if (config.model.root_init_registration.enabled) {
@@ -128,14 +133,7 @@ int RunSolve(int argc, char** argv) {
       }
       const bool replaced = std::any_of(r.videos.begin(), r.videos.end(),
                                         [](const VideoRegistration& c) { return c.replaced; });
-      const std::optional<RootPoseErrors> e =
-          replaced ? InitialRootPoseErrors(dataset) : std::nullopt;
-      if (e) {
-        std::printf(
-            "banmo solve: registered root poses: rotation error %.2f deg mean, %.2f deg p90 "
-            "against the ground truth\n",
-            e->mean_deg, e->p90_deg);
-      }
+      if (replaced) print_pose_error("registered");
     }
   }
   if (config.model.root_init_smoothing.enabled) {
@@ -155,12 +153,7 @@ int RunSolve(int argc, char** argv) {
           "deg estimated, poses turned by %.2f deg mean, %.2f max (%d iterations)\n",
           v, s.noise_deg, s.mean_change_deg, s.max_change_deg, s.iterations);
     }
-    if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(dataset)) {
-      std::printf(
-          "banmo solve: smoothed root poses: rotation error %.2f deg mean, %.2f deg p90 against "
-          "the ground truth\n",
-          e->mean_deg, e->p90_deg);
-    }
+    print_pose_error("smoothed");
   }
   // Inputs are valid: only now is anything written.
   MakeDirectories(out_dir);

@@ -13,19 +13,13 @@
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/util/logging.h"
+#include "banmo/util/median.h"
 #include "banmo/util/timer.h"
 
 namespace banmo {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + mid, v.end());
-  return v[mid];
-}
 
 // One frame's pose problem: the frame's rays' composite terms, every block but
 // the frame's root correction and/or bone transforms constant, the batch

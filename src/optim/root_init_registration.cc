@@ -11,6 +11,7 @@
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/optim/root_init_smoothing.h"
+#include "banmo/util/median.h"
 #include "banmo/util/parallel.h"
 
 namespace banmo {
@@ -299,19 +300,12 @@ Adjusted Adjust(const Factorisation& f, bool mirrored, const std::vector<Observa
   problem.Evaluate(eval, nullptr, &r, nullptr, nullptr);
   std::vector<double> norms(r.size() / 2);
   for (size_t i = 0; i < norms.size(); ++i) norms[i] = std::hypot(r[2 * i], r[2 * i + 1]);
-  if (!norms.empty()) {
-    std::nth_element(norms.begin(), norms.begin() + norms.size() / 2, norms.end());
-    out.median_px = norms[norms.size() / 2];
-  }
+  out.median_px = Median(std::move(norms));
   for (Pose& p : out.poses) p.segment<4>(kPoseQw).normalize();
   return out;
 }
 
-Eigen::Matrix3d PoseRotation(const Pose& p) {
-  return Eigen::Quaterniond(p[kPoseQw], p[kPoseQw + 1], p[kPoseQw + 2], p[kPoseQw + 3])
-      .normalized()
-      .toRotationMatrix();
-}
+Eigen::Matrix3d PoseRotation(const Pose& p) { return IsometryFromPose(p.data()).linear(); }
 
 // The rotation nearest to m (Frobenius).
 Eigen::Matrix3d ProjectToRotation(const Eigen::Matrix3d& m) {
@@ -506,11 +500,7 @@ RootRegistration RegisterRootPoseInit(const RootRegistrationOptions& options, Da
     return result;
   }
   const Eigen::Matrix3d gauge = ChordalMedian(offsets);
-  auto median = [](std::vector<double> x) {
-    std::nth_element(x.begin(), x.begin() + x.size() / 2, x.end());
-    return x[x.size() / 2];
-  };
-  const double di = median(depth_init), dr = median(depth_reg);
+  const double di = Median(std::move(depth_init)), dr = Median(std::move(depth_reg));
   const double scale = di > 0 && dr > 0 ? di / dr : 1.0;
 
   for (int v = 0; v < nv; ++v) {

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "banmo/util/logging.h"
+#include "banmo/util/median.h"
 
 namespace banmo {
 namespace {
@@ -120,8 +121,7 @@ double TrackNoise(const std::vector<Eigen::Vector4d>& q0, double* max_accel) {
     accel.push_back(r.norm());
   }
   *max_accel = *std::max_element(accel.begin(), accel.end());
-  std::nth_element(accel.begin(), accel.begin() + accel.size() / 2, accel.end());
-  return accel[accel.size() / 2] / (std::sqrt(6.0) * kChi3MedianNorm);
+  return Median(std::move(accel)) / (std::sqrt(6.0) * kChi3MedianNorm);
 }
 
 }  // namespace
