@@ -186,5 +186,19 @@ TEST(RootInitRegistration, NeedsFeaturesInEveryFrame) {
   }
 }
 
+// One usable frame: nothing to register against; the poses stay.
+TEST(RootInitRegistration, NeedsTwoUsableFrames) {
+  Dataset d = WithoutPoses();
+  for (Video& v : d.videos) {
+    for (Frame& f : v.frames) f.skip = true;
+  }
+  d.videos[0].frames[0].skip = false;
+  const RootRegistration r = RegisterRootPoseInit(RootRegistrationOptions(), &d);
+  EXPECT_FALSE(r.registered);
+  EXPECT_EQ(r.reason, "fewer than 2 usable frames");
+  EXPECT_EQ(d.videos[0].frames[0].root_pose_init,
+            WithoutPoses().videos[0].frames[0].root_pose_init);
+}
+
 }  // namespace
 }  // namespace banmo
