@@ -8,6 +8,7 @@
 #include <limits>
 #include <random>
 
+#include "banmo/geometry/nearest_rotation.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/optim/root_init_smoothing.h"
@@ -307,23 +308,15 @@ Adjusted Adjust(const Factorisation& f, bool mirrored, const std::vector<Observa
 
 Eigen::Matrix3d PoseRotation(const Pose& p) { return IsometryFromPose(p.data()).linear(); }
 
-// The rotation nearest to m (Frobenius).
-Eigen::Matrix3d ProjectToRotation(const Eigen::Matrix3d& m) {
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d u = svd.matrixU();
-  if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1;
-  return u * svd.matrixV().transpose();
-}
-
 // Chordal L1 mean of rotations (Weiszfeld).
 Eigen::Matrix3d ChordalMedian(const std::vector<Eigen::Matrix3d>& m) {
   Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
   for (const Eigen::Matrix3d& x : m) sum += x;
-  Eigen::Matrix3d g = ProjectToRotation(sum);
+  Eigen::Matrix3d g = NearestRotation(sum);
   for (int it = 0; it < 30; ++it) {
     sum.setZero();
     for (const Eigen::Matrix3d& x : m) sum += x / std::max((x - g).norm(), 1e-9);
-    g = ProjectToRotation(sum);
+    g = NearestRotation(sum);
   }
   return g;
 }

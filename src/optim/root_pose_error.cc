@@ -1,22 +1,19 @@
 #include "banmo/optim/root_pose_error.h"
 
 #include <Eigen/Geometry>
-#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
+#include "banmo/geometry/nearest_rotation.h"
+#include "banmo/geometry/se3.h"
 #include "banmo/util/format.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
 namespace {
 
-Eigen::Matrix3d Rotation(const Pose& p) {
-  return Eigen::Quaterniond(p[kPoseQw], p[kPoseQw + 1], p[kPoseQw + 2], p[kPoseQw + 3])
-      .normalized()
-      .toRotationMatrix();
-}
+Eigen::Matrix3d Rotation(const Pose& p) { return IsometryFromPose(p.data()).linear(); }
 
 // Through the quaternion (2 atan2(|v|, |w|)): accurate near 0, where
 // acos((trace - 1) / 2) loses half the digits.
@@ -44,11 +41,8 @@ std::optional<RootPoseErrors> Errors(const Dataset& dataset, const Estimate& est
   // A = argmin sum |R_gt A - R|_F^2 = the SO(3) projection of sum R_gt^T R.
   Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
   for (size_t i = 0; i < gt.size(); ++i) sum += gt[i].transpose() * est[i];
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(sum, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
   RootPoseErrors out;
-  out.alignment = svd.matrixU() * d * svd.matrixV().transpose();
+  out.alignment = NearestRotation(sum);
   out.alignment_deg = AngleDeg(out.alignment);
   std::vector<double> angles;
   for (size_t i = 0; i < gt.size(); ++i) {

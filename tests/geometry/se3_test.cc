@@ -5,6 +5,8 @@
 
 #include <Eigen/Geometry>
 
+#include "banmo/geometry/nearest_rotation.h"
+
 namespace banmo {
 namespace {
 
@@ -68,6 +70,21 @@ TEST(Se3, WorksWithJets) {
   EXPECT_NEAR(y[0].v[kPoseT + 0], 1.0, kTol);
   EXPECT_NEAR(y[1].v[kPoseT + 0], 0.0, kTol);
   EXPECT_TRUE(ceres::isfinite(y[2]));
+}
+
+TEST(NearestRotation, KeepsARotationAndRemovesScaleNoiseAndReflection) {
+  const Eigen::Matrix3d r = IsometryFromPose(TestPose().data()).linear();
+  EXPECT_LT((NearestRotation(r) - r).norm(), kTol);
+  // A scaled rotation plus a small perturbation projects back near it.
+  Eigen::Matrix3d noise;
+  noise << 1e-3, -2e-3, 0, 0, 1e-3, 3e-3, -1e-3, 0, 2e-3;
+  const Eigen::Matrix3d n = NearestRotation(2.5 * r + noise);
+  EXPECT_NEAR(n.determinant(), 1.0, kTol);
+  EXPECT_LT((n * n.transpose() - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_LT((n - r).norm(), 2e-3);
+  // A reflection's nearest rotation has determinant +1, not -1.
+  const Eigen::Matrix3d reflection = Eigen::Vector3d(1, 1, -1).asDiagonal();
+  EXPECT_NEAR(NearestRotation(r * reflection).determinant(), 1.0, kTol);
 }
 
 }  // namespace
