@@ -153,8 +153,14 @@ if [[ $do_compare == 1 ]]; then
     budget_for_run=()
     for rule in adam lm alternate; do
       selected "fox_$rule" || continue
+      rule_sets=("stages[*].step_rule=$rule")
+      # alternate's per-frame blocks move only in pose solves (configs.txt);
+      # fox.yaml holds the root, so they solve the bone transforms.
+      [[ $rule == alternate ]] && rule_sets+=("stages[*].pose_solve.every=200"
+                                              "stages[*].pose_solve.iterations=5"
+                                              "stages[*].pose_solve.bones=true")
       run_trace fox "fox_$rule" fox "$root/problems/fox.yaml" --max-solve-seconds 1800 -- \
-        "stages[*].step_rule=$rule"
+        "${rule_sets[@]}"
     done
   fi
 fi

@@ -32,9 +32,10 @@ stages:
 TEST(ConfigOverrides, SetsScalarsListsAndEveryStage) {
   const SolverConfig c = ParseConfigWithOverrides(
       kBase,
-      {"model.num_bones=16", "stages[*].step_rule=alternate", "stages[1].batches=5",
-       "stages[*].sampling.flow_gaps=[8]", "stages[*].lm.linear_solver=iterative_schur",
-       "model.field.sdf_width=24", "defaults.samples_per_ray=12"},
+      {"model.num_bones=16", "stages[*].step_rule=alternate", "stages[*].pose_solve.every=4",
+       "stages[1].batches=5", "stages[*].sampling.flow_gaps=[8]",
+       "stages[*].lm.linear_solver=iterative_schur", "model.field.sdf_width=24",
+       "defaults.samples_per_ray=12"},
       "base.yaml");
   EXPECT_EQ(c.model.num_bones, 16);
   EXPECT_EQ(c.model.field.sdf_width, 24);

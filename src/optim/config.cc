@@ -121,6 +121,7 @@ void VisitFields(V& v, ScheduleConfig& o) {
 template <class V>
 void VisitFields(V& v, PoseSolveConfig& o) {
   v("at", o.at);
+  v("every", o.every);
   v("bones", o.bones);
   v("rays", o.rays);
   v("iterations", o.iterations);
@@ -599,7 +600,8 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
     if (group == ParameterGroup::kDeltaSkinning || group == ParameterGroup::kPoseCode) continue;
     all_constant = all_constant && constant.Contains(group);
   }
-  if (all_constant && s.pose_solve.at.empty()) {
+  const bool pose_solves = !s.pose_solve.at.empty() || s.pose_solve.every > 0;
+  if (all_constant && !pose_solves) {
     c.Fail(p + ".constant",
            "every parameter group is constant and there is no pose solve (nothing to optimise)");
   }
@@ -676,10 +678,20 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
 
   const std::string q = p + ".pose_solve";
   c.IncreasingFractions(q + ".at", s.pose_solve.at);
-  if (!s.pose_solve.at.empty() && constant.Contains(ParameterGroup::kRoot) && !s.pose_solve.bones) {
-    c.Fail(q + ".at",
+  c.NonNegative(q + ".every", s.pose_solve.every);
+  if (pose_solves && constant.Contains(ParameterGroup::kRoot) && !s.pose_solve.bones) {
+    c.Fail(q + (s.pose_solve.at.empty() ? ".every" : ".at"),
            "pose solves move the root poses, which this stage holds constant (set "
            "pose_solve.bones: true to solve the bone transforms alone)");
+  }
+  const bool solved_blocks_free =
+      !constant.Contains(ParameterGroup::kRoot) ||
+      (s.pose_solve.bones && !constant.Contains(ParameterGroup::kBonesT));
+  if (s.step_rule == StepRule::kAlternate && !pose_solves && solved_blocks_free) {
+    c.Fail(q + ".every",
+           "step_rule alternate moves the per-frame root corrections (and with pose_solve.bones "
+           "the bone transforms) only in pose solves: set pose_solve.every (for example 100) or "
+           "pose_solve.at, or hold root constant");
   }
   if (!s.pose_solve.at.empty() && s.pose_solve.at.front() < s.schedule.root_free_from &&
       !constant.Contains(ParameterGroup::kRoot)) {

@@ -377,11 +377,11 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
     }
     Grow(batch_index, run, sp, c, result);
   }
-  for (double at : stage.pose_solve.at) {
-    if (batch_index == stage.BatchAt(at)) {
-      SolvePoses(batch_index, run, sp, c, result);
-    }
-  }
+  bool solve_poses =
+      stage.pose_solve.every > 0 && batch_index > 0 && batch_index % stage.pose_solve.every == 0;
+  for (double at : stage.pose_solve.at)
+    solve_poses = solve_poses || batch_index == stage.BatchAt(at);
+  if (solve_poses) SolvePoses(batch_index, run, sp, c, result);
 }
 
 void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, RunContext* c,
@@ -393,8 +393,11 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   context.robust = sp->ray_robust();
   context.delta_skinning = sp->batch().delta_skinning();
   context.match_grid = UniformPoints(bounds_, stage.sampling.match_grid_points, &c->state->rng);
-  context.solve_root = !sp->ConfiguredConstant(ParameterGroup::kRoot);
-  context.solve_bones = stage.pose_solve.bones;
+  // The root only once the schedule frees it (root_free_from).
+  context.solve_root = !sp->ConfiguredConstant(ParameterGroup::kRoot) &&
+                       batch_index >= stage.BatchAt(stage.schedule.root_free_from);
+  context.solve_bones = stage.pose_solve.bones && model_->num_bones() > 0;
+  if (!context.solve_root && !context.solve_bones) return;
   context.bone_steps_about_centres = stage.bone_steps_about_centres;
   PoseSolveReport report =
       SolveAllFramePoses(model_.get(), c->sampler, stage, bounds_, context, &c->state->rng);

@@ -42,8 +42,10 @@ void AdamStep(const StepContext& context, const std::vector<double*>& blocks,
 // radius is carried in the state from batch to batch, capped.
 void LmStep(const StepContext& context, const ParameterGroupSet& hold);
 
-// Adam on the fields and codes, then LM on the coupled poses and bones.
-void AlternateStep(const StepContext& context);
+// Adam on every block but the per-frame root corrections (and, with
+// pose_solve.bones, the bone transforms): the stage's pose solves move
+// those (Solver::SolvePoses).
+void AlternateStep(const StepContext& context, const std::function<void()>& record_losses);
 
 // The stage's step rule on the current minibatch. record_losses runs once
 // with the batch's residuals at the step's starting point in the cache.

@@ -399,6 +399,14 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
          S(c).pose_solve.at = {0.2};
          S(c).schedule.root_free_from = 0.3;
        }},
+      {"stages[1].pose_solve.every", [&](SolverConfig* c) { S(c).pose_solve.every = -1; }},
+      {"stages[1].pose_solve.every",  // alternate moves the per-frame blocks only in pose solves
+       [&](SolverConfig* c) { S(c).step_rule = StepRule::kAlternate; }},
+      {"stages[1].pose_solve.every",
+       [&](SolverConfig* c) {
+         S(c).pose_solve.every = 10;
+         S(c).constant = {ParameterGroup::kRoot};
+       }},
       {"stages[1].pose_solve.rays", [&](SolverConfig* c) { S(c).pose_solve.rays = 0; }},
       {"stages[1].pose_solve.iterations", [&](SolverConfig* c) { S(c).pose_solve.iterations = 0; }},
       {"stages[1].pose_solve.search_ratio",
@@ -490,6 +498,39 @@ TEST(SolverConfig, BonePoseSolvesMayHoldTheRootOrEverything) {
               CheckSolverConfig(config, "x.yaml");
             }).find("stages[1].constant: every parameter group is constant"),
             std::string::npos);
+  s.pose_solve.every = 50;  // pose solves every 50 batches are something to do
+  EXPECT_NO_THROW(CheckSolverConfig(config, "x.yaml"));
+}
+
+// The alternate rule's per-frame root corrections (and with
+// pose_solve.bones its bone transforms) move only in pose solves: it needs
+// a schedule of them unless the stage holds what they would solve.
+TEST(SolverConfig, AlternateNeedsPoseSolvesForItsPerFrameBlocks) {
+  SolverConfig config;
+  config.stages.resize(1);
+  StageConfig& s = config.stages[0];
+  s.step_rule = StepRule::kAlternate;
+  EXPECT_NE(ErrorOf([&] { CheckSolverConfig(config, "x.yaml"); })
+                .find("stages[0].pose_solve.every: step_rule alternate moves the per-frame root "
+                      "corrections (and with pose_solve.bones the bone transforms) only in pose "
+                      "solves"),
+            std::string::npos);
+  s.pose_solve.every = 100;
+  EXPECT_NO_THROW(CheckSolverConfig(config, "x.yaml"));
+  s.pose_solve.every = 0;
+  s.pose_solve.at = {0.5};
+  EXPECT_NO_THROW(CheckSolverConfig(config, "x.yaml"));
+  // Root held: Adam moves everything else, no solve needed ...
+  s.pose_solve.at.clear();
+  s.constant = {ParameterGroup::kRoot};
+  EXPECT_NO_THROW(CheckSolverConfig(config, "x.yaml"));
+  // ... unless the solves own the bone transforms.
+  s.pose_solve.bones = true;
+  EXPECT_NE(
+      ErrorOf([&] { CheckSolverConfig(config, "x.yaml"); }).find("stages[0].pose_solve.every"),
+      std::string::npos);
+  s.pose_solve.every = 50;
+  EXPECT_NO_THROW(CheckSolverConfig(config, "x.yaml"));
 }
 
 TEST(SolverConfig, ConstraintErrorsFromYamlGiveTheLine) {
@@ -644,6 +685,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.unbiased_silhouette_from = 0.35;
     s.schedule.neus_from = 0.45;
     s.pose_solve.at = {0.2, 0.7};
+    s.pose_solve.every = 40 + i;
     s.pose_solve.rays = 96;
     s.pose_solve.iterations = 4;
     s.pose_solve.search_ratio = 2.5;
@@ -1015,7 +1057,8 @@ TEST(SolverConfig, UnknownOptionNamesListTheChoices) {
 
 TEST(SolverConfig, OptionNamesRoundTrip) {
   SolverConfig c = ParseSolverConfig(
-      "stages:\n  - step_rule: alternate\n    lm: {linear_solver: iterative_schur}\n"
+      "stages:\n  - step_rule: alternate\n    pose_solve: {every: 10}\n"
+      "    lm: {linear_solver: iterative_schur}\n"
       "    adam: {schedule: constant}\n    constant: [bones_t, pose_code]\n"
       "    losses: {rgb: {robust: {type: soft_l1}}}\n",
       "t.yaml");

@@ -238,6 +238,58 @@ TEST(Solver, LmAndAlternateStepRulesRunAndStayFinite) {
   }
 }
 
+// The alternate rule: Adam on every block but the per-frame root
+// corrections every batch; those move only in the pose solves (every 3
+// batches in TinySolverConfig: before batch index 3 of 5). With
+// pose_solve.bones the bone transforms too.
+TEST(Solver, AlternateMovesRootCorrectionsOnlyInPoseSolves) {
+  const Dataset& data = TinyDataset();
+  for (const bool bones : {false, true}) {
+    SolverConfig config = TinyConfig(StepRule::kAlternate, 5);
+    ASSERT_EQ(config.stages[0].pose_solve.every, 3);
+    config.stages[0].pose_solve.bones = bones;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    const auto blocks = [](const Model& m, bool root) {
+      std::vector<double> out;
+      for (int v = 0; v < m.num_videos(); ++v) {
+        for (const auto& f : m.video(v).frames) {
+          if (root) {
+            out.insert(out.end(), f.root_delta.data(), f.root_delta.data() + kPoseSize);
+          } else {
+            out.insert(out.end(), f.bones_t.begin(), f.bones_t.end());
+          }
+        }
+      }
+      return out;
+    };
+    const std::vector<double> root0 = blocks(solver.model(), true);
+    const std::vector<double> bones_t0 = blocks(solver.model(), false);
+    SolveOptions options;
+    options.quiet = true;
+    std::vector<std::vector<double>> roots, bones_t;
+    options.on_batch = [&](const BatchProgress&, const Model& m) {
+      roots.push_back(blocks(m, true));
+      bones_t.push_back(blocks(m, false));
+    };
+    const SolveResult r = solver.Run(options);
+    EXPECT_TRUE(r.stages[0].finite) << bones;
+    ASSERT_EQ(roots.size(), 5u);
+    for (int b = 0; b < 3; ++b) EXPECT_EQ(roots[b], root0) << "batch index " << b;
+    EXPECT_NE(roots[3], roots[2]) << bones;  // the pose solve before batch index 3
+    EXPECT_EQ(roots[4], roots[3]) << bones;  // and nothing else
+    if (bones) {
+      EXPECT_EQ(bones_t[2], bones_t0);
+      EXPECT_NE(bones_t[3], bones_t[2]);
+      EXPECT_EQ(bones_t[4], bones_t[3]);
+    } else {
+      EXPECT_NE(bones_t[0], bones_t0);  // Adam from the first batch
+      EXPECT_NE(bones_t[4], bones_t[3]);
+    }
+    ASSERT_EQ(r.pose_solves.size(), 1u);
+    EXPECT_EQ(r.pose_solves[0].batch, 3);
+  }
+}
+
 TEST(Solver, OnBatchSeesEveryBatchInOrder) {
   const Dataset& data = TinyDataset();
   SolverConfig config = TinyConfig(StepRule::kAdam, 5);

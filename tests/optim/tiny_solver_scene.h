@@ -64,6 +64,13 @@ inline SolverConfig TinySolverConfig(StepRule step_rule, int iterations) {
   s.sampling.eikonal_points = 32;
   s.sampling.match_grid_points = 256;
   s.sampling.match_top_k = 8;
+  if (step_rule == StepRule::kAlternate) {
+    // Its per-frame pose blocks move only in pose solves: every 3 batches,
+    // small ones.
+    s.pose_solve.every = 3;
+    s.pose_solve.rays = 32;
+    s.pose_solve.iterations = 3;
+  }
   c.stages.push_back(s);
   return c;
 }

@@ -82,6 +82,11 @@ TEST_P(StabilityTest, EveryBatchFinite) {
     stage.batches = iterations[s];
     stage.batch_rays = 64;
     stage.step_rule = *ParseEnum<StepRule>(c.step_rule);
+    if (stage.step_rule == StepRule::kAlternate) {
+      stage.pose_solve.every = 4;  // its per-frame pose blocks move only in pose solves
+      stage.pose_solve.rays = 32;
+      stage.pose_solve.iterations = 3;
+    }
     stage.sampling.flow_gaps = c.gaps;
     stage.log_every = 0;
   }

@@ -177,15 +177,20 @@ struct ScheduleConfig {
 // stays high try a multi-hypothesis search.
 struct PoseSolveConfig {
   std::vector<double> at;  // fractions of the stage (increasing, in [0, 1]; empty = never)
-  int rays = 256;          // rays per frame, sampling.foreground_fraction of them in the mask
-  int iterations = 10;     // LM iterations per frame and per hypothesis
+  // Also every `every` batches (before batches every, 2 every, ...; 0 =
+  // never). The `alternate` step rule moves the per-frame root corrections
+  // (and with `bones` the bone transforms) only in these solves.
+  int every = 0;
+  int rays = 256;       // rays per frame, sampling.foreground_fraction of them in the mask
+  int iterations = 10;  // LM iterations per frame and per hypothesis
   // A frame whose cost per ray after its solve exceeds search_ratio times
   // the median frame's runs the search (0 = never).
   double search_ratio = 0.0;
   int search_rotations = 72;  // candidate rotations of the search (a uniform SO(3) set)
   int search_keep = 3;        // the candidates of lowest cost refined by LM
   // Also solve each frame's bone transforms J_b^t (with its root correction,
-  // or alone when the stage holds the root constant).
+  // or alone when the stage holds the root constant); in an `alternate`
+  // stage the bone transforms then move only in the solves.
   bool bones = false;
 };
 

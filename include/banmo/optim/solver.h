@@ -12,9 +12,10 @@
 //             what ceres::Problem::Evaluate gives, without forming the rays'
 //             Jacobians; manifolds and constant blocks respected: steps are
 //             taken in the tangent space);
-//   alternate Adam on the field MLPs and codes (delta skinning included),
-//             then LM on the small coupled blocks
-//             (root poses, bones, bone transforms) with the fields constant.
+//   alternate Adam on every block but the per-frame root corrections (and
+//             with pose_solve.bones the bone transforms), which move only
+//             in the stage's frame-major LM pose solves (pose_solve.every /
+//             at; optim/pose_solve.h).
 // With model.auto_size the model grows at fractions of the first stage
 // (optim/auto_size.h): the stage's problem drops its blocks, the model
 // grows, the blocks are added again and the Adam moments follow their
