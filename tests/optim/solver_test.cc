@@ -463,6 +463,15 @@ TEST(Solver, ResumeAcrossTheDensitySwitchAndAFreezeIsBitwiseIdentical) {
   ExpectResumeEqualsStraight(config, {3, 4, 6}, "banmo_resume_neus_freeze_test");
 }
 
+// The alternate rule with periodic pose solves (every 3 batches, bone
+// transforms included): stopped at a solve's batch, between solves and
+// after the second, it resumes to the uninterrupted result.
+TEST(Solver, ResumeWithAlternateIsBitwiseIdentical) {
+  SolverConfig config = TinyConfig(StepRule::kAlternate, 7);
+  config.stages[0].pose_solve.bones = true;
+  ExpectResumeEqualsStraight(config, {3, 5, 6}, "banmo_resume_alternate_test");
+}
+
 // Pose solves (with the search) draw from the run's RNG and drop the root
 // Adam moments: a run stopped at their batch and one stopped after them both
 // resume to the uninterrupted result. The solves also report every frame.
