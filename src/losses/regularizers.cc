@@ -4,6 +4,8 @@
 #include <ceres/dynamic_autodiff_cost_function.h>
 #include <ceres/jet.h>
 
+#include <cmath>
+#include <utility>
 #include <vector>
 
 #include "banmo/deform/bones.h"
@@ -205,6 +207,26 @@ struct BoneSmoothness {
   const PoseSmoothnessLoss loss;
 };
 
+struct BoneJointResidual {
+  BoneJointResidual(std::vector<BoneJoint> j, double w)
+      : joints(std::move(j)), sqrt_weight(std::sqrt(w)) {}
+  template <typename T>
+  bool operator()(T const* const* parameters, T* residuals) const {
+    const T* bones_t = parameters[0];
+    for (size_t k = 0; k < joints.size(); ++k) {
+      const BoneJoint& joint = joints[k];
+      const T m[3] = {T(joint.point[0]), T(joint.point[1]), T(joint.point[2])};
+      T ya[3], yb[3];
+      PoseTransformPoint(bones_t + kPoseSize * joint.a, m, ya);
+      PoseTransformPoint(bones_t + kPoseSize * joint.b, m, yb);
+      for (int i = 0; i < 3; ++i) residuals[3 * k + i] = T(sqrt_weight) * (ya[i] - yb[i]);
+    }
+    return true;
+  }
+  const std::vector<BoneJoint> joints;
+  const double sqrt_weight;
+};
+
 }  // namespace
 
 std::unique_ptr<ceres::CostFunction> MakeEikonalCostFunction(const CanonicalField& field,
@@ -257,6 +279,23 @@ std::unique_ptr<ceres::CostFunction> MakeBoneSmoothnessCostFunction(int num_bone
   cost->AddParameterBlock(kPoseSize * num_bones);
   cost->AddParameterBlock(kPoseSize * num_bones);
   cost->SetNumResiduals(PoseSmoothnessLoss::kNumResiduals * num_bones);
+  return cost;
+}
+
+std::unique_ptr<ceres::CostFunction> MakeBoneJointCostFunction(int num_bones,
+                                                               std::vector<BoneJoint> joints,
+                                                               double weight) {
+  CHECK_GT(num_bones, 0);
+  CHECK(!joints.empty()) << "no bone joints";
+  for (const BoneJoint& j : joints) {
+    CHECK(j.a >= 0 && j.b >= 0 && j.a < num_bones && j.b < num_bones && j.a != j.b)
+        << "joint (" << j.a << ", " << j.b << ") of " << num_bones << " bones";
+  }
+  const int residuals = 3 * static_cast<int>(joints.size());
+  auto cost = std::make_unique<ceres::DynamicAutoDiffCostFunction<BoneJointResidual, 14>>(
+      new BoneJointResidual(std::move(joints), weight));
+  cost->AddParameterBlock(kPoseSize * num_bones);
+  cost->SetNumResiduals(residuals);
   return cost;
 }
 

@@ -227,6 +227,17 @@ void StageProblem::SetMinibatch(std::vector<Ray> rays, const Eigen::Matrix3Xd& m
       }
     }
   }
+  const double joint = losses[LossTerm::kBoneJoint].weight;
+  if (B > 1 && joint > 0) {
+    // The joints follow the rest bones (re-initialisations, Adam steps).
+    const std::vector<BoneJoint> joints = FindBoneJoints(model.bones(), B);
+    std::set<std::pair<int, int>> frames;
+    for (const Ray& ray : batch_.rays()) frames.insert({ray.video, ray.frame});
+    for (const auto& [v, t] : frames) {
+      AddRegularizer(MakeBoneJointCostFunction(B, joints, joint), robust(LossTerm::kBoneJoint),
+                     {model.frame(v, t).bones_t.data()});
+    }
+  }
   used_.insert(model.sdf());
   if (B > 0) used_.insert(model.bones());
 }

@@ -187,6 +187,56 @@ TEST(PoseSmoothness, CostFunctionsAgreeWithNumericDifferentiation) {
   EXPECT_TRUE(bone_checker.Probe(bone_params.data(), 1e-7, &results)) << results.error_log;
 }
 
+TEST(BoneJointCost, ZeroForATurnAboutTheJointAndTheGapOtherwise) {
+  // Two bones joined at m: bone 1 turned 40 deg about m (a bent joint) costs
+  // nothing; bone 1 moved by d costs sqrt(w) |d| per joint.
+  const Eigen::Vector3d m(0.2, -0.1, 0.05);
+  const std::vector<BoneJoint> joints = {{0, 1, m}};
+  const double w = 4.0;
+  auto cost = MakeBoneJointCostFunction(2, joints, w);
+  ASSERT_EQ(cost->num_residuals(), 3);
+  std::vector<double> bones_t(2 * kPoseSize);
+  PoseSetIdentity(bones_t.data());
+  // J_1 = T(m) R T(-m): R about m.
+  const Eigen::Isometry3d about_m =
+      Eigen::Translation3d(m) *
+      Eigen::AngleAxisd(40.0 * M_PI / 180.0, Eigen::Vector3d(1, 2, 3).normalized()) *
+      Eigen::Translation3d(-m);
+  const Pose bent = PoseFromIsometry(about_m);
+  std::copy(bent.data(), bent.data() + kPoseSize, bones_t.data() + kPoseSize);
+  const double* params[] = {bones_t.data()};
+  double r[3];
+  ASSERT_TRUE(cost->Evaluate(params, r, nullptr));
+  EXPECT_LT(Eigen::Map<Eigen::Vector3d>(r).norm(), 1e-14);
+  // Slide bone 1 by d instead.
+  const Eigen::Vector3d d(0.03, -0.04, 0.0);
+  PoseSetIdentity(bones_t.data() + kPoseSize);
+  for (int k = 0; k < 3; ++k) bones_t[kPoseSize + kPoseT + k] = d[k];
+  ASSERT_TRUE(cost->Evaluate(params, r, nullptr));
+  EXPECT_NEAR(Eigen::Map<Eigen::Vector3d>(r).norm(), std::sqrt(w) * d.norm(), 1e-14);
+  EXPECT_NEAR(r[0], -std::sqrt(w) * d[0], 1e-14);  // J_0 m - J_1 m
+}
+
+TEST(BoneJointCost, AgreesWithNumericDifferentiation) {
+  const int B = 3;
+  const std::vector<BoneJoint> joints = {{0, 1, Eigen::Vector3d(0.1, 0.2, -0.1)},
+                                         {1, 2, Eigen::Vector3d(-0.3, 0.0, 0.2)}};
+  auto cost = MakeBoneJointCostFunction(B, joints, 0.5);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0.0, 0.3);
+  std::vector<double> bones_t(B * kPoseSize);
+  for (int b = 0; b < B; ++b) {
+    const Pose p = PoseFromAngleAxis(Eigen::Vector3d(n(rng), n(rng), n(rng)),
+                                     Eigen::Vector3d(n(rng), n(rng), n(rng)));
+    std::copy(p.data(), p.data() + kPoseSize, bones_t.data() + kPoseSize * b);
+  }
+  const std::vector<const ceres::Manifold*>* none = nullptr;
+  ceres::GradientChecker checker(cost.get(), none, ceres::NumericDiffOptions());
+  ceres::GradientChecker::ProbeResults results;
+  std::vector<double*> params = {bones_t.data()};
+  EXPECT_TRUE(checker.Probe(params.data(), 1e-7, &results)) << results.error_log;
+}
+
 TEST(LossFunctors, HandComputedValues) {
   // Each functor's residual at a constructed solution is zero and at a
   // perturbed input equals the hand-computed value.

@@ -28,6 +28,8 @@ SolverConfig TinyAdamConfig(int iterations) {
   s.losses[LossTerm::kRgb].robust = {RobustLossType::kHuber, 0.05};
   s.losses[LossTerm::kCycle3d].robust = {RobustLossType::kCauchy, 0.1};
   s.losses[LossTerm::kBoneInside].robust = {RobustLossType::kSoftL1, 0.1};
+  s.losses[LossTerm::kBoneJoint].weight = 0.5;
+  s.losses[LossTerm::kBoneJoint].robust = {RobustLossType::kHuber, 0.05};
   s.constant = {ParameterGroup::kIntrinsics, ParameterGroup::kAppearance};
   return c;
 }

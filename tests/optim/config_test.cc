@@ -769,15 +769,10 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.step_rule, t.step_rule);
     EXPECT_EQ(s.batch_rays, t.batch_rays);
     EXPECT_EQ(s.samples_per_ray, t.samples_per_ray);
-    ExpectSameLoss(s.losses[LossTerm::kRgb], t.losses[LossTerm::kRgb]);
-    ExpectSameLoss(s.losses[LossTerm::kSilhouette], t.losses[LossTerm::kSilhouette]);
-    ExpectSameLoss(s.losses[LossTerm::kFlow], t.losses[LossTerm::kFlow]);
-    ExpectSameLoss(s.losses[LossTerm::kFeatureMatch], t.losses[LossTerm::kFeatureMatch]);
-    ExpectSameLoss(s.losses[LossTerm::kCycle2d], t.losses[LossTerm::kCycle2d]);
-    ExpectSameLoss(s.losses[LossTerm::kCycle3d], t.losses[LossTerm::kCycle3d]);
-    ExpectSameLoss(s.losses[LossTerm::kEikonal], t.losses[LossTerm::kEikonal]);
-    ExpectSameLoss(s.losses[LossTerm::kBoneInside], t.losses[LossTerm::kBoneInside]);
-    ExpectSameLoss(s.losses[LossTerm::kPoseSmoothness], t.losses[LossTerm::kPoseSmoothness]);
+    for (const LossTermInfo& info : kLossTable) {
+      SCOPED_TRACE(info.key);
+      ExpectSameLoss(s.losses[info.term], t.losses[info.term]);
+    }
     EXPECT_EQ(s.losses.bone_inside_margin, t.losses.bone_inside_margin);
     EXPECT_EQ(s.constant, t.constant);
     EXPECT_EQ(s.adam.lr, t.adam.lr);

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "banmo/deform/bone_joints.h"
 #include "banmo/extract/extract.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/util/error.h"
@@ -52,6 +53,45 @@ TEST(Solver, AdamReducesTheLossOnATinyScene) {
   EXPECT_LT(r.stages[0].last_losses.at("silhouette"),
             0.5 * r.stages[0].first_losses.at("silhouette"));
   EXPECT_LT(Total(r.stages[0].last_losses), Total(r.stages[0].first_losses));
+}
+
+// The bone-joint regulariser (losses/regularizers.h): with it, neighbouring
+// bones' transforms move their joint points alike. Mean gap |J_a m - J_b m|
+// over every frame and joint of the final model (joints of its final rest
+// bones), the same 40 batches with and without the term. Adam steps a
+// coordinate by at most about lr whatever the weight, so the term narrows
+// the gaps rather than closing them (measured: 0.036 -> 0.021).
+double MeanJointGap(const Model& m) {
+  const std::vector<BoneJoint> joints = FindBoneJoints(m.bones(), m.num_bones());
+  double sum = 0.0;
+  int count = 0;
+  for (int v = 0; v < m.num_videos(); ++v) {
+    for (const FrameParameters& f : m.video(v).frames) {
+      for (const BoneJoint& j : joints) {
+        Eigen::Vector3d ya, yb;
+        PoseTransformPoint(f.bones_t.data() + kPoseSize * j.a, j.point.data(), ya.data());
+        PoseTransformPoint(f.bones_t.data() + kPoseSize * j.b, j.point.data(), yb.data());
+        sum += (ya - yb).norm();
+        ++count;
+      }
+    }
+  }
+  return sum / count;
+}
+
+TEST(Solver, BoneJointTermKeepsNeighbouringBonesTogether) {
+  const Dataset& data = TinyDataset();
+  double gap[2];
+  for (const int with : {0, 1}) {
+    SolverConfig config = TinyConfig(StepRule::kAdam, 40);
+    config.stages[0].losses[LossTerm::kBoneJoint].weight = with ? 10.0 : 0.0;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    const SolveResult r = solver.Run(options_quiet());
+    EXPECT_TRUE(r.stages.at(0).finite);
+    gap[with] = MeanJointGap(solver.model());
+  }
+  EXPECT_GT(gap[0], 0.0);  // the bones do move apart without it
+  EXPECT_LT(gap[1], 0.75 * gap[0]) << gap[0] << " -> " << gap[1];
 }
 
 // Adam's first step moves each coordinate by lr * scale (the bias-corrected

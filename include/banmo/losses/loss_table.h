@@ -29,9 +29,10 @@ enum class LossTerm {
   kCycle3d,
   kEikonal,
   kBoneInside,
-  kPoseSmoothness
+  kPoseSmoothness,
+  kBoneJoint
 };
-inline constexpr int kNumLossTerms = 10;
+inline constexpr int kNumLossTerms = 11;
 // LossTerm values below kNumRayTerms are evaluated per ray (losses/ray_batch.h).
 inline constexpr int kNumRayTerms = 7;
 // ... and below kNumCompositeTerms by the composite functor (losses/ray_functors.h).
@@ -120,6 +121,10 @@ inline constexpr std::array<LossTermInfo, kNumLossTerms> kLossTable = {{
      RaySelect::kNotPerRay, 0},
     {LossTerm::kPoseSmoothness, "pose_smoothness", "regulariser (Sec. 3.2, Eq. 12)", 0.01, 6, false,
      RaySelect::kNotPerRay, 0},
+    // Off unless a stage weights it (configs written before it existed
+    // keep their meaning).
+    {LossTerm::kBoneJoint, "bone_joint", "regulariser (neighbouring bones agree at their joint)",
+     0.0, 3, false, RaySelect::kNotPerRay, 0},
 }};
 
 constexpr bool TableInOrder() {

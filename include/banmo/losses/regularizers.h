@@ -1,5 +1,5 @@
 // Regulariser cost functions (not per ray): eikonal, bones inside the
-// surface, temporal smoothness of pose tracks. Each comes with its full-Jet
+// surface, temporal smoothness of pose tracks, bone joints. Each comes with its full-Jet
 // reference twin for the tests where a Jacobian is assembled by hand.
 #pragma once
 
@@ -7,7 +7,9 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <vector>
 
+#include "banmo/deform/bone_joints.h"
 #include "banmo/field/canonical_field.h"
 #include "banmo/geometry/se3.h"
 
@@ -46,5 +48,14 @@ std::unique_ptr<ceres::CostFunction> MakeRootSmoothnessCostFunction(const Pose& 
 std::unique_ptr<ceres::CostFunction> MakeBoneSmoothnessCostFunction(int num_bones,
                                                                     double rotation_weight,
                                                                     double translation_weight);
+
+// Bone joints of one frame (deform/bone_joints.h): for each joint (a, b, m),
+//   r = sqrt(w) (J_a^t m - J_b^t m),   3 residuals,
+// the two bone transforms' images of the canonical joint point m (a
+// constant); parameter block: bones_t of the frame (kPoseSize B). Zero when
+// the two bones move m alike, whatever they do elsewhere. Autodiff.
+std::unique_ptr<ceres::CostFunction> MakeBoneJointCostFunction(int num_bones,
+                                                               std::vector<BoneJoint> joints,
+                                                               double weight);
 
 }  // namespace banmo
