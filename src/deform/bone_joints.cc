@@ -29,22 +29,21 @@ std::vector<BoneJoint> FindBoneJoints(const double* bones, int num_bones) {
   std::vector<BoneJoint> joints;
   if (num_bones < 2) return joints;
   auto centre = [&](int b) { return Eigen::Map<const Eigen::Vector3d>(bones + kBoneSize * b); };
-  // Normalised distances and joint points of every pair.
-  Eigen::MatrixXd dist(num_bones, num_bones);
-  std::vector<Eigen::Vector3d> point(num_bones * num_bones, Eigen::Vector3d::Zero());
+  // The widths of bones a and b along the line between them (1 and 1 for
+  // coincident centres: distance 0, joint at the midpoint).
+  auto widths = [&](int a, int b) {
+    const Eigen::Vector3d ab = centre(b) - centre(a);
+    const double length = ab.norm();
+    if (length == 0.0) return Eigen::Vector2d(1.0, 1.0);
+    const Eigen::Vector3d d = ab / length;
+    return Eigen::Vector2d(WidthAlong(bones + kBoneSize * a, d),
+                           WidthAlong(bones + kBoneSize * b, d));
+  };
+  Eigen::MatrixXd dist = Eigen::MatrixXd::Zero(num_bones, num_bones);
   for (int a = 0; a < num_bones; ++a) {
-    dist(a, a) = 0.0;
     for (int b = a + 1; b < num_bones; ++b) {
-      const Eigen::Vector3d ab = centre(b) - centre(a);
-      const double length = ab.norm();
-      double sa = 1.0, sb = 1.0;  // coincident centres: distance 0, midpoint
-      if (length > 0.0) {
-        const Eigen::Vector3d d = ab / length;
-        sa = WidthAlong(bones + kBoneSize * a, d);
-        sb = WidthAlong(bones + kBoneSize * b, d);
-      }
-      dist(a, b) = dist(b, a) = length / (sa + sb);
-      point[a * num_bones + b] = centre(a) + (sa / (sa + sb)) * ab;
+      const Eigen::Vector2d s = widths(a, b);
+      dist(a, b) = dist(b, a) = (centre(b) - centre(a)).norm() / (s[0] + s[1]);
     }
   }
   // Prim's algorithm from bone 0; ties go to the lower index.
@@ -62,7 +61,8 @@ std::vector<BoneJoint> FindBoneJoints(const double* bones, int num_bones) {
       BoneJoint j;
       j.a = std::min(next, parent[next]);
       j.b = std::max(next, parent[next]);
-      j.point = point[j.a * num_bones + j.b];
+      const Eigen::Vector2d s = widths(j.a, j.b);
+      j.point = centre(j.a) + (s[0] / (s[0] + s[1])) * (centre(j.b) - centre(j.a));
       joints.push_back(j);
     }
     for (int b = 0; b < num_bones; ++b) {

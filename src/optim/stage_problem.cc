@@ -209,10 +209,11 @@ void StageProblem::SetMinibatch(std::vector<Ray> rays, const Eigen::Matrix3Xd& m
     AddRegularizer(MakeBoneInsideCostFunction(model.field(), B, losses.bone_inside_margin, inside),
                    robust(LossTerm::kBoneInside), {model.sdf(), model.bones()});
   }
+  // The batch's frames, for the per-frame regularisers below.
+  std::set<std::pair<int, int>> frames;
+  for (const Ray& ray : batch_.rays()) frames.insert({ray.video, ray.frame});
   const double w = losses[LossTerm::kPoseSmoothness].weight;
   if (w > 0) {
-    std::set<std::pair<int, int>> frames;
-    for (const Ray& ray : batch_.rays()) frames.insert({ray.video, ray.frame});
     for (const auto& [v, t] : frames) {
       if (t + 1 >= static_cast<int>(model.video(v).frames.size())) continue;
       FrameParameters& a = model.frame(v, t);
@@ -231,8 +232,6 @@ void StageProblem::SetMinibatch(std::vector<Ray> rays, const Eigen::Matrix3Xd& m
   if (B > 1 && joint > 0) {
     // The joints follow the rest bones (re-initialisations, Adam steps).
     const std::vector<BoneJoint> joints = FindBoneJoints(model.bones(), B);
-    std::set<std::pair<int, int>> frames;
-    for (const Ray& ray : batch_.rays()) frames.insert({ray.video, ray.frame});
     for (const auto& [v, t] : frames) {
       AddRegularizer(MakeBoneJointCostFunction(B, joints, joint), robust(LossTerm::kBoneJoint),
                      {model.frame(v, t).bones_t.data()});
