@@ -145,6 +145,7 @@ void VisitFields(V& v, StageConfig& o) {
   v("schedule", o.schedule);
   v("pose_solve", o.pose_solve);
   v("bone_steps_about_centres", o.bone_steps_about_centres);
+  v("bone_steps_articulated", o.bone_steps_articulated);
   v("checkpoint_every", o.checkpoint_every);
   v("log_every", o.log_every);
 }
@@ -707,6 +708,12 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   if (s.pose_solve.search_keep > s.pose_solve.search_rotations) {
     c.Fail(q + ".search_keep", "expected <= pose_solve.search_rotations (",
            s.pose_solve.search_rotations, "), got ", s.pose_solve.search_keep);
+  }
+
+  if (s.bone_steps_articulated && s.bone_steps_about_centres) {
+    c.Fail(p + ".bone_steps_articulated",
+           "cannot be combined with bone_steps_about_centres (each sets how a bone transform "
+           "steps): choose one");
   }
 
   c.NonNegative(p + ".checkpoint_every", s.checkpoint_every);

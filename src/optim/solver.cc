@@ -167,6 +167,14 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   const bool resuming_stage = s == state->stage && state->batch > 0;
   run.start = resuming_stage ? state->batch : 0;
   if (!resuming_stage) state->lm_radius = -1.0;
+  if (!resuming_stage && s > 0 &&
+      config_.stages[s - 1].bone_steps_articulated != stage.bone_steps_articulated) {
+    // The bone transforms' tangent space changes (3 B + 3 against 6 B):
+    // their Adam moments, temporal bases' included, start again.
+    for (auto m = state->adam.begin(); m != state->adam.end();) {
+      m = m->first.find("bones_t") != std::string::npos ? state->adam.erase(m) : std::next(m);
+    }
+  }
   run.summary.name = stage.name;
   StageProblem sp(model_.get(), stage, c->extra_constant);
   run.timer.Reset();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "banmo/deform/articulated_manifold.h"
 #include "banmo/deform/bones.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/losses/regularizers.h"
@@ -75,6 +76,10 @@ void StageProblem::AddModelBlocks() {
   AddBlock(G::kColor, m.color(), m.color_size(), nullptr);
   AddBlock(G::kEmbedding, m.embedding(), m.embedding_size(), nullptr);
   AddBlock(G::kLogBeta, m.log_beta(), 1, nullptr);
+  if (stage_.bone_steps_articulated && B > 0) {
+    if (!bone_tree_) bone_tree_ = std::make_unique<BoneTree>();
+    *bone_tree_ = MakeBoneTree(m.bones(), B);
+  }
   if (B > 0) {
     AddBlock(G::kBones, m.bones(), m.bones_size(),
              MakeStackedQuaternionBlockManifold(B, kBoneSize, kBoneQw));
@@ -90,10 +95,15 @@ void StageProblem::AddModelBlocks() {
       FrameParameters& f = m.frame(v, t);
       AddBlock(G::kRoot, f.root_delta.data(), kPoseSize, MakePoseManifold());
       if (B > 0) {
-        AddBlock(G::kBonesT, f.bones_t.data(), kPoseSize * B,
-                 stage_.bone_steps_about_centres
-                     ? MakeStackedPivotPoseManifold(B, m.bones(), kBoneSize, kBoneCenter)
-                     : MakeStackedPoseManifold(B));
+        std::unique_ptr<ceres::Manifold> manifold;
+        if (stage_.bone_steps_articulated) {
+          manifold = MakeArticulatedBoneManifold(B, bone_tree_.get());
+        } else if (stage_.bone_steps_about_centres) {
+          manifold = MakeStackedPivotPoseManifold(B, m.bones(), kBoneSize, kBoneCenter);
+        } else {
+          manifold = MakeStackedPoseManifold(B);
+        }
+        AddBlock(G::kBonesT, f.bones_t.data(), kPoseSize * B, std::move(manifold));
       }
       if (m.has_delta_skinning()) {
         AddBlock(G::kPoseCode, f.pose_code.data(), m.pose_code_size(), nullptr);
@@ -178,6 +188,10 @@ void StageProblem::SetMinibatch(std::vector<Ray> rays, const Eigen::Matrix3Xd& m
   Model& model = model_;
   const int B = model.num_bones();
   const LossesConfig& losses = stage_.losses;
+  // The articulated steps' joints follow the rest bones (re-initialisations,
+  // Adam steps), fixed for the batch: its gradient and its step see the same
+  // tree, and a resumed run rebuilds it from the same bones.
+  if (bone_tree_) *bone_tree_ = MakeBoneTree(model.bones(), B);
   batch_.SetMatchGrid(match_grid);
   batch_.SetRays(std::move(rays));
   used_.clear();

@@ -23,6 +23,8 @@
 
 namespace banmo {
 
+struct BoneTree;
+
 class StageProblem {
  public:
   // `extra_constant`: groups held constant on top of the stage's own.
@@ -102,6 +104,10 @@ class StageProblem {
   std::vector<ceres::ResidualBlockId> batch_blocks_;
   std::vector<ceres::ResidualBlockId> regularizer_blocks_;  // of batch_blocks_
   std::set<const double*> used_;                            // blocks read by the minibatch
+  // The joint tree the bone transforms' articulated steps follow
+  // (StageConfig::bone_steps_articulated; null otherwise): rebuilt from the
+  // rest bones at every minibatch, read by every frame's manifold.
+  std::unique_ptr<BoneTree> bone_tree_;
 };
 
 // The Ceres loss function of a robust-loss config (nullptr for none).

@@ -47,8 +47,7 @@ std::vector<double> Solve(const SolverConfig& config, bool from_ceres) {
   return AllParameters(solver.model());
 }
 
-TEST(AdamGradient, BatchedPathEqualsCeresEvaluatePath) {
-  const SolverConfig config = TinyAdamConfig(4);
+void ExpectBatchedPathEqualsCeresPath(const SolverConfig& config) {
   const Dataset& data = TinyDataset();
   std::vector<double> initial;
   {
@@ -72,6 +71,18 @@ TEST(AdamGradient, BatchedPathEqualsCeresEvaluatePath) {
   }
   EXPECT_GT(max_step, 1e-3);  // the steps are not trivially empty
   EXPECT_LE(max_diff, 1e-9) << "max step " << max_step;
+}
+
+TEST(AdamGradient, BatchedPathEqualsCeresEvaluatePath) {
+  ExpectBatchedPathEqualsCeresPath(TinyAdamConfig(4));
+}
+
+// The same with the bone transforms on the articulated manifold (tangent
+// 3 B + 3, deform/articulated_manifold.h).
+TEST(AdamGradient, BatchedPathEqualsCeresEvaluatePathWithArticulatedBoneSteps) {
+  SolverConfig config = TinyAdamConfig(4);
+  config.stages[0].bone_steps_articulated = true;
+  ExpectBatchedPathEqualsCeresPath(config);
 }
 
 }  // namespace

@@ -456,6 +456,11 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
          c->model.auto_size.enabled = true;
          c->model.auto_size.max_width = c->model.field.sdf_width - 1;
        }},
+      {"stages[1].bone_steps_articulated",
+       [&](SolverConfig* c) {
+         S(c).bone_steps_articulated = true;
+         S(c).bone_steps_about_centres = true;
+       }},
       {"stages[1].checkpoint_every", [&](SolverConfig* c) { S(c).checkpoint_every = -1; }},
       {"stages[1].log_every", [&](SolverConfig* c) { S(c).log_every = -1; }},
   };
@@ -692,7 +697,8 @@ SolverConfig EveryFieldChanged() {
     s.pose_solve.search_rotations = 24;
     s.pose_solve.search_keep = 2;
     s.pose_solve.bones = true;
-    s.bone_steps_about_centres = true;
+    s.bone_steps_about_centres = i == 0;  // the two are exclusive
+    s.bone_steps_articulated = i != 0;
     s.checkpoint_every = 50;
     s.log_every = 5;
     c.stages.push_back(s);
@@ -819,6 +825,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.pose_solve.search_keep, t.pose_solve.search_keep);
     EXPECT_EQ(s.pose_solve.bones, t.pose_solve.bones);
     EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
+    EXPECT_EQ(s.bone_steps_articulated, t.bone_steps_articulated);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
     EXPECT_EQ(s.schedule.root_free_from, t.schedule.root_free_from);
     EXPECT_EQ(s.schedule.unbiased_silhouette_from, t.schedule.unbiased_silhouette_from);
@@ -876,6 +883,12 @@ TEST(SolverConfig, RoundTripKeepsEveryField) {
     // EveryFieldChanged has delta skinning on, which excludes auto_size
     // (EveryConstraintNamesItsKey); AutoSizeRoundTrips covers the key.
     if (key == ".model.auto_size.enabled") continue;
+    // The two bone-step keys exclude each other: stage 0 changes one,
+    // stage 1 the other.
+    if (key == ".stages[0].bone_steps_articulated" ||
+        key == ".stages[1].bone_steps_about_centres") {
+      continue;
+    }
     EXPECT_NE(changed[key], value) << key << " unchanged by EveryFieldChanged";
   }
   // And the default config round-trips too.

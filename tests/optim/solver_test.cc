@@ -94,6 +94,25 @@ TEST(Solver, BoneJointTermKeepsNeighbouringBonesTogether) {
   EXPECT_LT(gap[1], 0.75 * gap[0]) << gap[0] << " -> " << gap[1];
 }
 
+// Articulated bone steps (StageConfig::bone_steps_articulated) keep every
+// joint's gap |J_a m - J_b m| as it is; the gaps that remain come from the
+// rest bones moving under the transforms (the joints move with them). The
+// same 40 batches with free steps open them.
+TEST(Solver, ArticulatedBoneStepsKeepNeighbouringBonesTogether) {
+  const Dataset& data = TinyDataset();
+  double gap[2];
+  for (const int articulated : {0, 1}) {
+    SolverConfig config = TinyConfig(StepRule::kAdam, 40);
+    config.stages[0].bone_steps_articulated = articulated == 1;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    const SolveResult r = solver.Run(options_quiet());
+    EXPECT_TRUE(r.stages.at(0).finite);
+    gap[articulated] = MeanJointGap(solver.model());
+  }
+  EXPECT_GT(gap[0], 0.0);
+  EXPECT_LT(gap[1], 0.25 * gap[0]) << gap[0] << " -> " << gap[1];
+}
+
 // Adam's first step moves each coordinate by lr * scale (the bias-corrected
 // m / sqrt(v) is sign(g)), so the group multipliers are visible in one batch:
 // log beta moves by exactly lr * beta_lr_scale (up to epsilon / |g|).
@@ -481,6 +500,30 @@ TEST(Solver, ResumeWithTemporalBasesIsBitwiseIdentical) {
   config.stages[0].adam.root_basis = 2;
   config.stages[0].schedule.bone_reinit_at = {0.5};
   ExpectResumeEqualsStraight(config, {2, 4}, "banmo_resume_basis_test");
+}
+
+// Articulated bone steps rebuild their joint tree from the rest bones at
+// every batch and change the bone transforms' tangent size between stages
+// (their Adam moments start again): a run of articulated Adam (across a
+// bone re-initialisation), free Adam and articulated LM stopped in each
+// stage resumes to the uninterrupted result.
+TEST(Solver, ResumeWithArticulatedBoneStepsIsBitwiseIdentical) {
+  SolverConfig config = TinyConfig(StepRule::kAdam, 6);
+  config.stages[0].bone_steps_articulated = true;
+  config.stages[0].schedule.bone_reinit_at = {0.5};
+  StageConfig free = config.stages[0];
+  free.name = "free";
+  free.batches = 3;
+  free.bone_steps_articulated = false;
+  free.schedule.bone_reinit_at = {};
+  StageConfig lm = free;
+  lm.name = "lm";
+  lm.batches = 2;
+  lm.step_rule = StepRule::kLm;
+  lm.bone_steps_articulated = true;
+  config.stages.push_back(free);
+  config.stages.push_back(lm);
+  ExpectResumeEqualsStraight(config, {2, 4, 7, 10}, "banmo_resume_articulated_test");
 }
 
 // A checkpoint written exactly at a bone re-initialisation batch (before the

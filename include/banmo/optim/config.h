@@ -215,6 +215,13 @@ struct StageConfig {
   // (MakeStackedPivotPoseManifold, geometry/pose_manifold.h) instead of
   // about the canonical origin; Adam and the pose solves alike.
   bool bone_steps_about_centres = false;
+  // Steps of a frame's bone transforms follow the rest bones' joint tree
+  // (MakeArticulatedBoneManifold, deform/articulated_manifold.h): the root
+  // bone's rigid step and one turn per other bone about its joint with its
+  // parent, carrying its subtree (3 B + 3 unknowns a frame instead of 6 B),
+  // so no step slides a bone away from its neighbours. Adam and the lm /
+  // alternate step rules; the pose solves keep their own steps.
+  bool bone_steps_articulated = false;
   int checkpoint_every = 0;  // batches between checkpoints (0 = end of stage only)
   int log_every = 10;        // batches between progress lines
 };
