@@ -77,9 +77,11 @@ namespace {
 constexpr int kFirstSeeds = 4;
 }  // namespace
 
-TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, double seed_spacing) {
+TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, double seed_spacing,
+                                   double max_seeds) {
   CHECK_GT(scale, 0.0);
   CHECK_GT(seed_spacing, 0.0);
+  CHECK_GE(max_seeds, 1.0);
   impl_ = std::make_unique<Impl>();
   const int num_vertices = mesh.NumVertices();
   std::vector<int> kept;
@@ -90,14 +92,17 @@ TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, doubl
         ThrowInputError("face ", f, " refers to vertex ", v, " outside [0, ", num_vertices, ")");
       }
     }
-    const Eigen::Vector3d a = mesh.vertices.col(mesh.faces(0, f));
-    const Eigen::Vector3d b = mesh.vertices.col(mesh.faces(1, f));
-    const Eigen::Vector3d c = mesh.vertices.col(mesh.faces(2, f));
-    if ((b - a).cross(c - a).norm() > 0.0) kept.push_back(f);  // false for NaN too
+    const Eigen::Vector3d a = scale * mesh.vertices.col(mesh.faces(0, f));
+    const Eigen::Vector3d b = scale * mesh.vertices.col(mesh.faces(1, f));
+    const Eigen::Vector3d c = scale * mesh.vertices.col(mesh.faces(2, f));
+    // A positive, finite area: false for NaN, for infinite corners and for
+    // edges whose squares overflow (no distance to speak of).
+    const double area2 = (b - a).cross(c - a).norm();
+    if (area2 > 0.0 && std::isfinite(area2)) kept.push_back(f);
   }
   const auto n = static_cast<Eigen::Index>(kept.size());
   if (n == 0) {
-    ThrowInputError("mesh has no triangle with positive area (", mesh.NumFaces(),
+    ThrowInputError("mesh has no finite triangle with positive area (", mesh.NumFaces(),
                     " faces); a surface is needed");
   }
   impl_->a.resize(3, n);
@@ -117,11 +122,33 @@ TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, doubl
   // distance of a point of a triangle to its nearest corner is at most the
   // circumradius of an acute or half the longest edge of an obtuse triangle,
   // both <= longest edge / sqrt(3)).
+  //
+  // A surface with very long edges (a diverged solve's mesh: edges of 1e6
+  // against a spacing of 0.04) would need about (e / spacing)^2 / 2 seeds a
+  // triangle, more than memory holds: the spacing grows until the seeds
+  // number at most max_seeds (default 4e6, 96 MB of points, far above any
+  // mesh at the evaluation's spacing: the dense Fox has one a triangle) or
+  // one a triangle. The result stays exact; only the searches' radius grows
+  // with the cover.
+  auto longest_edge = [&](Eigen::Index t) {
+    const Eigen::Vector3d a = impl_->a.col(t), b = impl_->b.col(t), c = impl_->c.col(t);
+    return std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+  };
+  for (;;) {
+    double total = 0.0;
+    for (Eigen::Index t = 0; t < n; ++t) {
+      const double e = longest_edge(t);
+      const double m = e <= seed_spacing ? 0.0 : std::ceil(e / seed_spacing);
+      total += m == 0.0 ? 1.0 : 0.5 * (m + 1.0) * (m + 2.0);
+    }
+    if (total <= std::max(max_seeds, static_cast<double>(n))) break;
+    seed_spacing *= std::max(1.1, std::sqrt(total / max_seeds));
+  }
   std::vector<Eigen::Vector3d> points;
   double cover = 0.0;
   for (Eigen::Index t = 0; t < n; ++t) {
     const Eigen::Vector3d a = impl_->a.col(t), b = impl_->b.col(t), c = impl_->c.col(t);
-    const double e = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const double e = longest_edge(t);
     if (e <= seed_spacing) {
       const Eigen::Vector3d g = (a + b + c) / 3.0;
       points.push_back(g);

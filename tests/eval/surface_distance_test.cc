@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -135,6 +136,46 @@ TEST(TriangleSurface3, BadMeshesAreErrors) {
   TriangleMesh bad = Blob(Eigen::Vector3d(0, 0, 3), 6, 8);
   bad.faces(1, 3) = -1;
   EXPECT_THROW(TriangleSurface3{bad}, InputError);
+}
+
+// A diverged solve's mesh: a blob with one triangle stretched to 1e7 units
+// would need about 3e16 seeds at the default spacing. The spacing widens
+// to fit max_seeds (here 2e4, to keep the test small), and the distances
+// stay exact.
+TEST(TriangleSurface3, HugeTrianglesWidenTheSeedSpacing) {
+  TriangleMesh mesh = Blob(Eigen::Vector3d(0, 0, 3), 6, 8);
+  mesh.vertices.col(mesh.faces(0, 5)) = Eigen::Vector3d(1e7, -2e6, 5e6);
+  const TriangleSurface3 surface(mesh, 1.0, 0.04, 2e4);
+  EXPECT_EQ(surface.NumTriangles(), mesh.NumFaces());
+  EXPECT_LE(surface.NumSeeds(), 2e4);
+  Uniform u(5);
+  Eigen::Matrix3Xd queries(3, 300);
+  for (Eigen::Index i = 0; i < queries.cols(); ++i) {
+    queries.col(i) = (i % 3 == 0 ? 1e6 : 2.0) * u.Vector() + Eigen::Vector3d(0, 0, 3);
+  }
+  Eigen::Matrix3Xd fast_points, ref_points;
+  Eigen::VectorXd fast, ref;
+  surface.Closest(queries, &fast_points, &fast);
+  surface.ClosestBruteForce(queries, &ref_points, &ref);
+  for (Eigen::Index i = 0; i < queries.cols(); ++i) {
+    EXPECT_NEAR(fast(i), ref(i), 1e-12 * (1.0 + ref(i))) << "query " << i;
+  }
+}
+
+// Triangles with a non-finite corner are left out; a mesh of nothing else
+// is an error.
+TEST(TriangleSurface3, NonFiniteTrianglesAreLeftOut) {
+  TriangleMesh mesh = Blob(Eigen::Vector3d(0, 0, 3), 6, 8);
+  const int faces = mesh.NumFaces();
+  int touching = 0;
+  const int v = mesh.faces(0, 0);
+  for (int f = 0; f < faces; ++f) {
+    touching += mesh.faces(0, f) == v || mesh.faces(1, f) == v || mesh.faces(2, f) == v;
+  }
+  mesh.vertices(1, v) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(TriangleSurface3(mesh).NumTriangles(), faces - touching);
+  mesh.vertices.setConstant(std::numeric_limits<double>::infinity());
+  EXPECT_THROW(TriangleSurface3{mesh}, InputError);
 }
 
 TEST(KdTree3, NearestKMatchesSortedBruteForce) {

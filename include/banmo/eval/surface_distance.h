@@ -30,15 +30,17 @@ Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 // be issued from several threads.
 class TriangleSurface3 {
  public:
-  // Copies the triangles of `mesh` whose area is positive, with every vertex
+  // Copies the triangles of `mesh` whose area is positive and finite, with every vertex
   // multiplied by `scale` (> 0), and builds the seeds (seed_spacing > 0, in
   // the scaled units) and their tree. The spacing only changes the speed,
   // never the result: 0.04 was the fastest on the Fox and a 36k-vertex mesh
   // in the normalised units of the evaluation (0.005 to 0.32 measured,
-  // benchmarks/eval/README.md). Throws InputError if no triangle has
-  // positive area or a face index is out of range.
+  // benchmarks/eval/README.md). Triangles too long for `max_seeds` seeds at
+  // that spacing (a diverged solve's mesh, edges of 1e6) get a wider one,
+  // again without changing the result. Throws InputError if no triangle has
+  // a positive, finite area or a face index is out of range.
   explicit TriangleSurface3(const TriangleMesh& mesh, double scale = 1.0,
-                            double seed_spacing = 0.04);
+                            double seed_spacing = 0.04, double max_seeds = 4e6);
   ~TriangleSurface3();
   TriangleSurface3(TriangleSurface3&&) noexcept;
   TriangleSurface3& operator=(TriangleSurface3&&) noexcept;
