@@ -10,6 +10,7 @@
 
 #include "banmo/deform/bone_joints.h"
 #include "banmo/deform/bones.h"
+#include "banmo/geometry/pose_manifold.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/util/logging.h"
 
@@ -34,26 +35,6 @@ std::vector<int> HopsFrom(const std::vector<std::vector<int>>& neighbours, int f
     }
   }
   return hops;
-}
-
-// ceres::QuaternionManifold's step quaternion [cos|w|, sin|w| w/|w|]; below
-// 1e-20 squared (the value 0 of a Jet at the expansion point) its
-// first-order form [1, w], so derivatives at w = 0 are exact.
-template <typename T>
-void StepQuaternion(const T* w, T* q) {
-  const T squared = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-  if (squared < T(1e-20)) {
-    q[0] = T(1);
-    for (int k = 0; k < 3; ++k) q[k + 1] = w[k];
-    return;
-  }
-  using std::cos;
-  using std::sin;
-  using std::sqrt;
-  const T norm = sqrt(squared);
-  const T s = sin(norm) / norm;
-  q[0] = cos(norm);
-  for (int k = 0; k < 3; ++k) q[k + 1] = s * w[k];
 }
 
 // The Plus of the header, on any scalar (Jets for the Jacobian).

@@ -96,23 +96,10 @@ class PivotPoseFunctor {
 
   template <typename T>
   bool Plus(const T* x, const T* delta, T* x_plus_delta) const {
-    // As ceres::QuaternionManifold::Plus; below 1e-20 squared (the
-    // value 0 of a Jet at the expansion point) its first-order form, so
-    // the derivatives at delta = 0 are exact.
-    const T squared = delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2];
+    // As ceres::QuaternionManifold::Plus (StepQuaternion: exact
+    // derivatives at delta = 0).
     T dq[4];
-    if (squared < T(1e-20)) {
-      dq[0] = T(1);
-      for (int k = 0; k < 3; ++k) dq[k + 1] = delta[k];
-    } else {
-      using std::cos;
-      using std::sin;
-      using std::sqrt;
-      const T norm = sqrt(squared);
-      const T s = sin(norm) / norm;
-      dq[0] = cos(norm);
-      for (int k = 0; k < 3; ++k) dq[k + 1] = s * delta[k];
-    }
+    StepQuaternion(delta, dq);
     ceres::QuaternionProduct(dq, x, x_plus_delta);
     T rc[3], rc_new[3];
     const T c[3] = {T(pivot_[0]), T(pivot_[1]), T(pivot_[2])};

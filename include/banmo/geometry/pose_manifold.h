@@ -3,9 +3,31 @@
 
 #include <ceres/manifold.h>
 
+#include <cmath>
 #include <memory>
 
 namespace banmo {
+
+// The step quaternion of ceres::QuaternionManifold::Plus for a tangent step
+// w: [cos|w|, sin|w| w / |w|]. Below 1e-20 squared (the value 0 of a Jet at
+// the expansion point) its first-order form [1, w], so derivatives at
+// w = 0 are exact. Any scalar (Jets for autodiff manifolds).
+template <typename T>
+void StepQuaternion(const T* w, T* q) {
+  const T squared = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+  if (squared < T(1e-20)) {
+    q[0] = T(1);
+    for (int k = 0; k < 3; ++k) q[k + 1] = w[k];
+    return;
+  }
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const T norm = sqrt(squared);
+  const T s = sin(norm) / norm;
+  q[0] = cos(norm);
+  for (int k = 0; k < 3; ++k) q[k + 1] = s * w[k];
+}
 
 // One pose [qw, qx, qy, qz, tx, ty, tz] (geometry/se3.h):
 // ProductManifold<QuaternionManifold, EuclideanManifold<3>>; ambient 7,
