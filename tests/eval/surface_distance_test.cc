@@ -138,8 +138,9 @@ TEST(TriangleSurface3, BadMeshesAreErrors) {
   EXPECT_THROW(TriangleSurface3{bad}, InputError);
 }
 
-// A diverged solve's mesh: a blob with one triangle stretched to 1e7 units
-// would need about 3e16 seeds at the default spacing. The spacing widens
+// A diverged solve's mesh: a blob with one vertex moved 1e7 units away
+// (the triangles around it stretched) would need about 3e16 seeds at the
+// default spacing. The spacing widens
 // to fit max_seeds (here 2e4, to keep the test small), and the distances
 // stay exact.
 TEST(TriangleSurface3, HugeTrianglesWidenTheSeedSpacing) {
