@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -57,6 +58,14 @@ Eigen::Vector3d Apply(const double* pose, const Eigen::Vector3d& p) {
   return out;
 }
 
+// BodyAndLeg's bones, their tree and the manifold of five bones on it.
+class ArticulatedBoneManifold : public testing::Test {
+ protected:
+  const std::vector<double> bones = BodyAndLeg();
+  const BoneTree tree = MakeBoneTree(bones.data(), 5);
+  const std::unique_ptr<ceres::Manifold> manifold = MakeArticulatedBoneManifold(5, &tree);
+};
+
 TEST(BoneTree, RootedAtTheCentreWithJointsAsPivots) {
   const std::vector<double> bones = BodyAndLeg();
   const BoneTree tree = MakeBoneTree(bones.data(), 5);
@@ -84,10 +93,7 @@ TEST(BoneTree, RootedAtTheCentreWithJointsAsPivots) {
   EXPECT_EQ(MakeBoneTree(nullptr, 0).TangentSize(), 0);
 }
 
-TEST(ArticulatedBoneManifold, ZeroStepAndRootTranslation) {
-  const std::vector<double> bones = BodyAndLeg();
-  const BoneTree tree = MakeBoneTree(bones.data(), 5);
-  const auto manifold = MakeArticulatedBoneManifold(5, &tree);
+TEST_F(ArticulatedBoneManifold, ZeroStepAndRootTranslation) {
   EXPECT_EQ(manifold->AmbientSize(), 35);
   EXPECT_EQ(manifold->TangentSize(), 18);
   std::mt19937 rng(3);
@@ -110,10 +116,7 @@ TEST(ArticulatedBoneManifold, ZeroStepAndRootTranslation) {
 // A turn of the leg's upper bone (3): its joint with the body stays where
 // bone 3 put it, the lower bone (4) turns with it rigidly, the body bones do
 // not move.
-TEST(ArticulatedBoneManifold, ABoneTurnsAboutItsJointAndCarriesItsSubtree) {
-  const std::vector<double> bones = BodyAndLeg();
-  const BoneTree tree = MakeBoneTree(bones.data(), 5);
-  const auto manifold = MakeArticulatedBoneManifold(5, &tree);
+TEST_F(ArticulatedBoneManifold, ABoneTurnsAboutItsJointAndCarriesItsSubtree) {
   std::mt19937 rng(5);
   const std::vector<double> x = RandomPoses(5, &rng);
   std::vector<double> delta(18, 0.0), y(35);
@@ -139,10 +142,7 @@ TEST(ArticulatedBoneManifold, ABoneTurnsAboutItsJointAndCarriesItsSubtree) {
 
 // Every step moves whole subtrees rigidly, so each joint's gap
 // |J_a m - J_b m| keeps its length, for any step from any poses.
-TEST(ArticulatedBoneManifold, StepsKeepTheJointGaps) {
-  const std::vector<double> bones = BodyAndLeg();
-  const BoneTree tree = MakeBoneTree(bones.data(), 5);
-  const auto manifold = MakeArticulatedBoneManifold(5, &tree);
+TEST_F(ArticulatedBoneManifold, StepsKeepTheJointGaps) {
   std::mt19937 rng(7);
   std::normal_distribution<double> n(0.0, 0.4);
   for (int trial = 0; trial < 5; ++trial) {
@@ -161,10 +161,7 @@ TEST(ArticulatedBoneManifold, StepsKeepTheJointGaps) {
 
 // PlusJacobian (Jets) against central differences of Plus: step 1e-6,
 // truncation error O(1e-12) and rounding O(1e-10) against entries of order 1.
-TEST(ArticulatedBoneManifold, PlusJacobianAgreesWithNumericDifferentiation) {
-  const std::vector<double> bones = BodyAndLeg();
-  const BoneTree tree = MakeBoneTree(bones.data(), 5);
-  const auto manifold = MakeArticulatedBoneManifold(5, &tree);
+TEST_F(ArticulatedBoneManifold, PlusJacobianAgreesWithNumericDifferentiation) {
   std::mt19937 rng(11);
   const std::vector<double> x = RandomPoses(5, &rng);
   RowMajorMatrix jac(35, 18);
@@ -189,10 +186,7 @@ TEST(ArticulatedBoneManifold, PlusJacobianAgreesWithNumericDifferentiation) {
 // of d about 1e-4 the error is about 1e-7 (|d|^2 times the pseudo-inverse's
 // norm and the curvature of the poses), so the bound is 1e-6, a hundredth of
 // d: a zeroth-order or wrongly scaled Minus misses it by far.
-TEST(ArticulatedBoneManifold, MinusUndoesASmallPlus) {
-  const std::vector<double> bones = BodyAndLeg();
-  const BoneTree tree = MakeBoneTree(bones.data(), 5);
-  const auto manifold = MakeArticulatedBoneManifold(5, &tree);
+TEST_F(ArticulatedBoneManifold, MinusUndoesASmallPlus) {
   std::mt19937 rng(13);
   std::normal_distribution<double> n(0.0, 1e-4);
   const std::vector<double> x = RandomPoses(5, &rng);
@@ -208,16 +202,16 @@ TEST(ArticulatedBoneManifold, MinusUndoesASmallPlus) {
 }
 
 // One bone: the root alone, a turn about its centre and a translation.
-TEST(ArticulatedBoneManifold, OneBoneTurnsAboutItsCentre) {
-  const std::vector<double> bones = Bones({{0.2, 0.1, 0}});
-  const BoneTree tree = MakeBoneTree(bones.data(), 1);
-  const auto manifold = MakeArticulatedBoneManifold(1, &tree);
-  EXPECT_EQ(manifold->TangentSize(), 6);
+TEST_F(ArticulatedBoneManifold, OneBoneTurnsAboutItsCentre) {
+  const std::vector<double> one_bone = Bones({{0.2, 0.1, 0}});
+  const BoneTree one_tree = MakeBoneTree(one_bone.data(), 1);
+  const auto one = MakeArticulatedBoneManifold(1, &one_tree);
+  EXPECT_EQ(one->TangentSize(), 6);
   std::mt19937 rng(17);
   const std::vector<double> x = RandomPoses(1, &rng);
   const double delta[6] = {0.1, 0.2, -0.3, 0, 0, 0};
   double y[7];
-  ASSERT_TRUE(manifold->Plus(x.data(), delta, y));
+  ASSERT_TRUE(one->Plus(x.data(), delta, y));
   const Eigen::Vector3d c(0.2, 0.1, 0);
   EXPECT_LT((Apply(y, c) - Apply(x.data(), c)).norm(), 1e-12);
 }
