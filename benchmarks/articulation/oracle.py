@@ -4,7 +4,7 @@
 # measurements. Needs python3-numpy and python3-scipy (Debian packages).
 #
 #   oracle.py meshes OUT DATA DST [--mode lbs|rigid|static] [--corr-frames N]
-#   oracle.py checkpoint OUT DATA DST [--corr-frames N]
+#   oracle.py checkpoint OUT DATA DST [--corr-frames N] [--fraction F]
 #
 # OUT is a finished `banmo solve` output (OUT/checkpoint, OUT/meshes with
 # canonical.ply, skinning_weights.npy and frames/, OUT/eval/per_frame.csv),
@@ -23,7 +23,8 @@
 # `banmo eval --pred DST --gt DATA`; `checkpoint` writes OUT/checkpoint with
 # the lbs transforms as its bone transforms J_b^t (model units, root frame:
 # G^-1 times the camera-frame fit, G fitted from the learnt meshes) for
-# `banmo render` or a resumed solve.
+# `banmo render` or a resumed solve; --fraction F keeps F of each transform
+# (F of its turn, about the rest bone centre, and F of the centre's travel).
 import argparse, csv, glob, os, shutil, struct, sys
 
 import numpy as np
@@ -105,6 +106,8 @@ class Solve:
         tail = sum(per_video + t * per_frame for t in self.frames_per_video)
         self.bones_t_offsets = []
         o = len(self.params) - tail
+        # Rest bones (10 each: centre, orientation, log scales) just before.
+        self.bone_centres = self.params[o - 10 * self.num_bones:o].reshape(-1, 10)[:, :3]
         for frames in self.frames_per_video:
             o += per_video
             for _ in range(frames):
@@ -184,8 +187,14 @@ def checkpoint(args):
         js, (rg, tg) = s.learnt_transforms(k)
         bt = params[s.bones_t_offsets[k]:][:POSE * s.num_bones].reshape(-1, POSE)
         for b, (rc, tc) in enumerate(s.lbs_fit(k)):
-            r = rg.T @ rc  # J = G^-1 (camera-frame fit)
-            bt[b, :4], bt[b, 4:] = matrix_to_quat(r), rg.T @ (tc - tg)
+            r, t = rg.T @ rc, rg.T @ (tc - tg)  # J = G^-1 (camera-frame fit)
+            if args.fraction != 1.0:
+                # That fraction of the turn, about the rest centre c, which
+                # moves that fraction of the way to J c.
+                c = s.bone_centres[b]
+                r = Rotation.from_rotvec(args.fraction * Rotation.from_matrix(r).as_rotvec()).as_matrix()
+                t = c + args.fraction * (rg.T @ (rc @ c + tc - tg) - c) - r @ c
+            bt[b, :4], bt[b, 4:] = matrix_to_quat(r), t
             learnt.append(Rotation.from_matrix(js[b][0]).magnitude())
             oracle.append(Rotation.from_matrix(r).magnitude())
         params[s.bones_t_offsets[k]:s.bones_t_offsets[k] + POSE * s.num_bones] = bt.reshape(-1)
@@ -212,6 +221,10 @@ def main():
                        help='frames of lowest CD that vote for the correspondence')
         if name == 'meshes':
             q.add_argument('--mode', choices=('lbs', 'rigid', 'static'), default='lbs')
+        else:
+            q.add_argument('--fraction', type=float, default=1.0,
+                           help='that fraction of each oracle transform (turn and centre travel '
+                                'about the rest bone centre; 1 = all of it)')
     args = p.parse_args()
     meshes(args) if args.command == 'meshes' else checkpoint(args)
 
