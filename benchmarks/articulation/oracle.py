@@ -185,6 +185,7 @@ def checkpoint(args):
     learnt, oracle = [], []
     for k in range(len(s.frame_paths)):
         js, (rg, tg) = s.learnt_transforms(k)
+        # A view of params: writing bt writes the checkpoint's values.
         bt = params[s.bones_t_offsets[k]:][:POSE * s.num_bones].reshape(-1, POSE)
         for b, (rc, tc) in enumerate(s.lbs_fit(k)):
             r, t = rg.T @ rc, rg.T @ (tc - tg)  # J = G^-1 (camera-frame fit)
@@ -197,7 +198,6 @@ def checkpoint(args):
             bt[b, :4], bt[b, 4:] = matrix_to_quat(r), t
             learnt.append(Rotation.from_matrix(js[b][0]).magnitude())
             oracle.append(Rotation.from_matrix(r).magnitude())
-        params[s.bones_t_offsets[k]:s.bones_t_offsets[k] + POSE * s.num_bones] = bt.reshape(-1)
     tmp = args.dst + '.tmp'
     shutil.rmtree(tmp, ignore_errors=True)
     shutil.copytree(f'{args.out}/checkpoint', tmp)

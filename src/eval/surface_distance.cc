@@ -84,7 +84,10 @@ TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, doubl
   CHECK_GE(max_seeds, 1.0);
   impl_ = std::make_unique<Impl>();
   const int num_vertices = mesh.NumVertices();
-  std::vector<int> kept;
+  impl_->a.resize(3, mesh.NumFaces());
+  impl_->b.resize(3, mesh.NumFaces());
+  impl_->c.resize(3, mesh.NumFaces());
+  Eigen::Index n = 0;  // triangles kept so far, in columns [0, n)
   for (int f = 0; f < mesh.NumFaces(); ++f) {
     for (int k = 0; k < 3; ++k) {
       const int v = mesh.faces(k, f);
@@ -98,22 +101,19 @@ TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, doubl
     // A positive, finite area: false for NaN, for infinite corners and for
     // edges whose squares overflow (no distance to speak of).
     const double area2 = (b - a).cross(c - a).norm();
-    if (area2 > 0.0 && std::isfinite(area2)) kept.push_back(f);
+    if (!(area2 > 0.0 && std::isfinite(area2))) continue;
+    impl_->a.col(n) = a;
+    impl_->b.col(n) = b;
+    impl_->c.col(n) = c;
+    ++n;
   }
-  const auto n = static_cast<Eigen::Index>(kept.size());
   if (n == 0) {
     ThrowInputError("mesh has no finite triangle with positive area (", mesh.NumFaces(),
                     " faces); a surface is needed");
   }
-  impl_->a.resize(3, n);
-  impl_->b.resize(3, n);
-  impl_->c.resize(3, n);
-  for (Eigen::Index t = 0; t < n; ++t) {
-    const int f = kept[static_cast<std::size_t>(t)];
-    impl_->a.col(t) = scale * mesh.vertices.col(mesh.faces(0, f));
-    impl_->b.col(t) = scale * mesh.vertices.col(mesh.faces(1, f));
-    impl_->c.col(t) = scale * mesh.vertices.col(mesh.faces(2, f));
-  }
+  impl_->a.conservativeResize(3, n);
+  impl_->b.conservativeResize(3, n);
+  impl_->c.conservativeResize(3, n);
   // Seeds: a triangle whose longest edge e is at most seed_spacing gets its
   // centroid (every point of it is within max |corner - centroid| <= e / sqrt(3)
   // of it); a longer one the barycentric grid of step 1/m, m = ceil(e /
@@ -130,15 +130,19 @@ TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, doubl
   // mesh at the evaluation's spacing: the dense Fox has one a triangle) or
   // one a triangle. The result stays exact; only the searches' radius grows
   // with the cover.
-  auto longest_edge = [&](Eigen::Index t) {
+  std::vector<double> longest(static_cast<std::size_t>(n));
+  for (Eigen::Index t = 0; t < n; ++t) {
     const Eigen::Vector3d a = impl_->a.col(t), b = impl_->b.col(t), c = impl_->c.col(t);
-    return std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-  };
+    longest[static_cast<std::size_t>(t)] =
+        std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+  }
+  // Grid steps m of a triangle with longest edge e (0: its centroid alone);
+  // a double, since before the spacing widens it can pass any int.
+  auto grid_steps = [&](double e) { return e <= seed_spacing ? 0.0 : std::ceil(e / seed_spacing); };
   for (;;) {
     double total = 0.0;
-    for (Eigen::Index t = 0; t < n; ++t) {
-      const double e = longest_edge(t);
-      const double m = e <= seed_spacing ? 0.0 : std::ceil(e / seed_spacing);
+    for (const double e : longest) {
+      const double m = grid_steps(e);
       total += m == 0.0 ? 1.0 : 0.5 * (m + 1.0) * (m + 2.0);
     }
     if (total <= std::max(max_seeds, static_cast<double>(n))) break;
@@ -148,8 +152,9 @@ TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, doubl
   double cover = 0.0;
   for (Eigen::Index t = 0; t < n; ++t) {
     const Eigen::Vector3d a = impl_->a.col(t), b = impl_->b.col(t), c = impl_->c.col(t);
-    const double e = longest_edge(t);
-    if (e <= seed_spacing) {
+    const double e = longest[static_cast<std::size_t>(t)];
+    const int m = static_cast<int>(grid_steps(e));  // at most max_seeds now
+    if (m == 0) {
       const Eigen::Vector3d g = (a + b + c) / 3.0;
       points.push_back(g);
       impl_->seed_triangle.push_back(static_cast<int>(t));
@@ -157,7 +162,6 @@ TriangleSurface3::TriangleSurface3(const TriangleMesh& mesh, double scale, doubl
       cover = std::max(cover, impl_->triangle_cover.back());
       continue;
     }
-    const int m = static_cast<int>(std::ceil(e / seed_spacing));
     for (int i = 0; i <= m; ++i) {
       for (int j = 0; i + j <= m; ++j) {
         points.push_back(a + (static_cast<double>(i) / m) * (b - a) +
