@@ -104,7 +104,7 @@ int RunExtract(int argc, char** argv) {
   });
   std::printf(
       "wrote %s: canonical mesh %d vertices, %d faces (%.2f s); %d articulated frames in "
-      "%s/frames (%.2f s)%s; total %.2f s\n",
+      "%s/frames (%.2f s); embedding.npy%s; total %.2f s\n",
       out_dir.c_str(), s.canonical_vertices, s.canonical_faces, s.canonical_seconds,
       s.frames_written, out_dir.c_str(), s.articulate_seconds,
       model->num_bones() > 0 ? "; bones.ply, skinning.ply, skinning_weights.npy" : "",

@@ -283,6 +283,18 @@ Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& po
   return weights;
 }
 
+Eigen::MatrixXd EmbeddingAt(const Model& model, const Eigen::Matrix3Xd& points) {
+  const CanonicalField& field = model.field();
+  const int n = static_cast<int>(points.cols());
+  Eigen::MatrixXd psi(CanonicalField::EmbeddingDim(), n);
+  ParallelFor(n, [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      field.EvaluateEmbedding(model.embedding(), points.col(i).data(), psi.col(i).data());
+    }
+  });
+  return psi;
+}
+
 TriangleMesh MeshInDatasetUnits(const Model& model, TriangleMesh mesh) {
   mesh.vertices *= model.scene_scale();
   return mesh;
@@ -397,6 +409,16 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
       for (int b = 0; b < B; ++b) data.at<float>(i, b) = static_cast<float>(weights(b, i));
     }
     WriteNpy((out / "skinning_weights.npy").string(), data, /*channel_axis=*/false);
+  }
+
+  {
+    // (vertices, 16) float32, row-major.
+    const Eigen::MatrixXd psi = EmbeddingAt(model, canonical.vertices);
+    cv::Mat data(canonical.NumVertices(), static_cast<int>(psi.rows()), CV_32F);
+    for (int i = 0; i < canonical.NumVertices(); ++i) {
+      for (int c = 0; c < psi.rows(); ++c) data.at<float>(i, c) = static_cast<float>(psi(c, i));
+    }
+    WriteNpy((out / "embedding.npy").string(), data, /*channel_axis=*/false);
   }
 
   const int num_frames = static_cast<int>(frames.size());

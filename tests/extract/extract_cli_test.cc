@@ -89,7 +89,8 @@ TEST_F(ExtractCli, WritesTheLibraryResult) {
   EXPECT_TRUE(fs::exists(out / "frames/video01_frame00001.ply"));
   EXPECT_TRUE(fs::exists(out / "frames/video00_frame00000.ply"));
   EXPECT_FALSE(fs::exists(out / "frames/video00_frame00001.ply"));
-  for (const char* name : {"bones.ply", "skinning.ply", "skinning_weights.npy", "extract.json"}) {
+  for (const char* name :
+       {"bones.ply", "skinning.ply", "skinning_weights.npy", "embedding.npy", "extract.json"}) {
     EXPECT_TRUE(fs::exists(out / name)) << name;
   }
 }

@@ -337,6 +337,21 @@ TEST(WriteExtraction, WritesAllFilesReadableByTheReaders) {
   for (int i = 0; i < w.rows; i += 11) {
     for (int b = 0; b < 3; ++b) EXPECT_NEAR(w.at<float>(i, b), expect(b, i), 1e-6);
   }
+  // The embedding of every vertex, as the field evaluates it (float32).
+  const cv::Mat psi = ReadNpy(dir + "/embedding.npy");
+  ASSERT_EQ(psi.rows, canonical.NumVertices());
+  ASSERT_EQ(psi.cols, CanonicalField::EmbeddingDim());
+  ASSERT_EQ(psi.type(), CV_32FC1);
+  double spread = 0.0;
+  for (int i = 0; i < psi.rows; i += 7) {
+    double expect[CanonicalField::EmbeddingDim()];
+    model->field().EvaluateEmbedding(model->embedding(), canonical.vertices.col(i).data(), expect);
+    for (int c = 0; c < psi.cols; ++c) {
+      EXPECT_NEAR(psi.at<float>(i, c), expect[c], 1e-6 * (1.0 + std::abs(expect[c])));
+      spread += std::abs(expect[c] - psi.at<float>(0, c));
+    }
+  }
+  EXPECT_GT(spread, 0.0);  // not one value for all vertices
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(dir + "/frames")) {
     names.push_back(e.path().filename().string());
@@ -357,6 +372,7 @@ TEST(WriteExtraction, WritesAllFilesReadableByTheReaders) {
   EXPECT_FALSE(fs::exists(dir + "/frames/video00_frame00000.ply"));
   EXPECT_FALSE(fs::exists(dir + "/bones.ply"));
   EXPECT_FALSE(fs::exists(dir + "/skinning_weights.npy"));
+  EXPECT_TRUE(fs::exists(dir + "/embedding.npy"));
   fs::remove_all(dir);
 }
 

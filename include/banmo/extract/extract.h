@@ -23,6 +23,8 @@
 //   skinning.ply               canonical mesh coloured by dominant bone (B > 0)
 //   skinning_weights.npy       float32 array (V, B): row i = skinning weights
 //                              of vertex i of canonical.ply (B > 0)
+//   embedding.npy              float32 array (V, 16): row i = canonical
+//                              embedding psi of vertex i (raw MLP output)
 //   extract.json               options, counts and timings (bounds in dataset
 //                              units, scene_scale)
 #pragma once
@@ -124,6 +126,11 @@ TriangleMesh ArticulateMesh(const Model& model, const TriangleMesh& canonical, i
 // (softmax of the Gaussian logits plus the forward delta logits, Eq. 14;
 // they do not depend on the frame). Empty (0 x V) if B = 0.
 Eigen::MatrixXd SkinningWeightsAt(const Model& model, const Eigen::Matrix3Xd& points);
+
+// Canonical embedding psi (16 x V, Eq. 15) of canonical points: the
+// embedding MLP's raw output (the feature matcher compares directions, so
+// normalise before comparing with pixel features).
+Eigen::MatrixXd EmbeddingAt(const Model& model, const Eigen::Matrix3Xd& points);
 
 // `mesh` (canonical or posed, model units) in dataset units: vertices
 // times model.scene_scale().
