@@ -196,17 +196,30 @@ int Run(int argc, char** argv) {
     return row;
   };
 
-  // The starting point.
-  {
+  auto set_progress = [](const BatchProgress& p, TraceRow* row) {
+    row->stage = p.stage;
+    row->stage_name = p.stage_name;
+    row->batch = p.batch;
+    row->total_batches = p.total_batches;
+    row->solve_seconds = p.solve_seconds;
+    row->losses = p.losses;
+  };
+  // A row of the solver's model as it is now (after `progress` when given),
+  // evaluated at `resolution` (every frame when `all_frames`).
+  auto model_row = [&](const std::string& kind, const BatchProgress* progress, int resolution,
+                       bool all_frames) {
     Timer t;
-    TraceRow row = base_row("trace");
+    TraceRow row = base_row(kind);
+    if (progress != nullptr) set_progress(*progress, &row);
     row.nonfinite_what = FirstNonFiniteBlock(solver.model());
     row.params_finite = row.nonfinite_what.empty();
-    evaluate(solver.model(), o.resolution, false, &row);
+    evaluate(solver.model(), resolution, all_frames, &row);
     trace_seconds += t.Seconds();
     csv += TraceCsvLine(row);
     write_csv();
-  }
+  };
+
+  model_row("trace", nullptr, o.resolution, false);  // the starting point
 
   double next_time = o.every_seconds;
   BatchProgress last;
@@ -232,12 +245,7 @@ int Run(int argc, char** argv) {
     last_traced = false;
     if (at_batches || at_time || !finite || over_budget) {
       TraceRow row = base_row(finite ? "trace" : "nonfinite");
-      row.stage = p.stage;
-      row.stage_name = p.stage_name;
-      row.batch = p.batch;
-      row.total_batches = p.total_batches;
-      row.solve_seconds = p.solve_seconds;
-      row.losses = p.losses;
+      set_progress(p, &row);
       row.losses_finite = losses_finite;
       row.params_finite = bad_block.empty();
       row.nonfinite_what = !bad_block.empty() ? bad_block : bad_loss;
@@ -267,38 +275,8 @@ int Run(int argc, char** argv) {
   } catch (const StopRun&) {
   }
   // The end of the run.
-  if (!last_traced && !nonfinite) {
-    Timer t;
-    TraceRow row = base_row("trace");
-    row.stage = last.stage;
-    row.stage_name = last.stage_name;
-    row.batch = last.batch;
-    row.total_batches = last.total_batches;
-    row.solve_seconds = last.solve_seconds;
-    row.losses = last.losses;
-    row.nonfinite_what = FirstNonFiniteBlock(solver.model());
-    row.params_finite = row.nonfinite_what.empty();
-    evaluate(solver.model(), o.resolution, false, &row);
-    trace_seconds += t.Seconds();
-    csv += TraceCsvLine(row);
-    write_csv();
-  }
-  if (o.final_resolution > 0 && !nonfinite) {
-    Timer t;
-    TraceRow row = base_row("final");
-    row.stage = last.stage;
-    row.stage_name = last.stage_name;
-    row.batch = last.batch;
-    row.total_batches = last.total_batches;
-    row.solve_seconds = last.solve_seconds;
-    row.losses = last.losses;
-    row.nonfinite_what = FirstNonFiniteBlock(solver.model());
-    row.params_finite = row.nonfinite_what.empty();
-    evaluate(solver.model(), o.final_resolution, true, &row);
-    trace_seconds += t.Seconds();
-    csv += TraceCsvLine(row);
-    write_csv();
-  }
+  if (!last_traced && !nonfinite) model_row("trace", &last, o.resolution, false);
+  if (o.final_resolution > 0 && !nonfinite) model_row("final", &last, o.final_resolution, true);
   std::ostringstream done;
   done << "batches " << last.total_batches << "\nsolve_seconds " << last.solve_seconds
        << "\nwall_seconds " << wall.Seconds() << "\ncpu_seconds " << ProcessCpuSeconds()
