@@ -1,0 +1,370 @@
+#!/usr/bin/env python3
+# Mask-and-flow articulation fit: per-frame bone transforms of a solve's
+# canonical mesh and skinning weights fitted to the masks and the optical flow
+# only (no ground truth), as a prototype of a motion estimate for the bone
+# re-initialisation. benchmarks/articulation/README.md has the measurements.
+# Needs python3-numpy, python3-scipy, python3-yaml and python3-opencv.
+#
+#   maskfit.py F DATA DST [--compare-oracle]
+#
+# F is a folder with F/checkpoint (a banmo checkpoint, e.g. right after a
+# bone re-initialisation), F/meshes (`banmo extract` of it: canonical.ply,
+# skinning_weights.npy, frames/) and, for --compare-oracle only, F/eval
+# (`banmo eval` of F/meshes/frames against DATA). DST gets the checkpoint with
+# the fitted bone transforms (DST/checkpoint) and the posed meshes
+# (DST/frames) for `banmo eval`.
+#
+# Per video, frame by frame (each frame starts from the previous one's fit),
+# Gauss-Newton on the 6 B transform parameters of the frame (B bones: a turn
+# about the rest bone centre and the centre's travel), the root pose fixed at
+# the checkpoint's, in pixels:
+#   outside:  the distance transform of the mask's background at each posed
+#             vertex's projection (vertices must fall inside the mask);
+#   cover:    each object pixel to the nearest projected vertex (the mask
+#             must be covered), re-associated every iteration;
+#   flow:     the previous frame's visible vertices, moved by the flow from
+#             the previous frame, as targets (the motion between frames);
+#   joints:   where two bones share skinning weight they move that part alike;
+#   smooth:   the turn and travel change little from the previous frame.
+import argparse, glob, os, shutil, struct, sys, time
+
+import cv2
+import numpy as np
+import yaml
+from scipy import ndimage
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from oracle import POSE, matrix_to_quat, procrustes, quat_to_matrix, read_ply, write_ply  # noqa: E402
+
+
+def skew(a):
+    z = np.zeros(a.shape[:-1])
+    return np.stack([np.stack([z, -a[..., 2], a[..., 1]], -1),
+                     np.stack([a[..., 2], z, -a[..., 0]], -1),
+                     np.stack([-a[..., 1], a[..., 0], z], -1)], -2)
+
+
+def read_flow(path):
+    img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    if img is None:
+        sys.exit(f'{path}: cannot read the flow PNG')
+    img = img[..., ::-1].astype(np.float64)  # BGR -> RGB
+    return (img[..., :2] - 2 ** 15) / 64.0, img[..., 2] > 0
+
+
+def bilinear(img, u, v):
+    """img at pixel-centre coordinates (u, v) (column i's centre is i + 0.5),
+    with its gradient; clamped at the border."""
+    h, w = img.shape
+    x = np.clip(u - 0.5, 0, w - 1.001)
+    y = np.clip(v - 0.5, 0, h - 1.001)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    a, b = img[y0, x0], img[y0, x0 + 1]
+    c, d = img[y0 + 1, x0], img[y0 + 1, x0 + 1]
+    val = (1 - fy) * ((1 - fx) * a + fx * b) + fy * ((1 - fx) * c + fx * d)
+    gx = (1 - fy) * (b - a) + fy * (d - c)
+    gy = (1 - fx) * (c - a) + fx * (d - b)
+    return val, gx, gy
+
+
+class Model:
+    def __init__(self, folder):
+        ck = f'{folder}/checkpoint'
+        model = yaml.safe_load(open(f'{ck}/model.yaml'))
+        opts = model['options']
+        if opts.get('delta_skinning', {}).get('enabled'):
+            sys.exit(f'{ck}: delta skinning is not supported')
+        self.num_bones = opts['num_bones']
+        self.videos = model['videos']
+        raw = open(f'{ck}/params.bin', 'rb').read()
+        n = struct.unpack('<Q', raw[8:16])[0]
+        self.raw, self.params = raw, np.frombuffer(raw[16:16 + 8 * n], '<f8').copy()
+        per_video = 4 + opts['field']['appearance_code_dim']
+        per_frame = 2 * POSE + POSE * self.num_bones
+        tail = sum(per_video + v['frames'] * per_frame for v in self.videos)
+        o = len(self.params) - tail
+        self.centres = self.params[o - 10 * self.num_bones:o].reshape(-1, 10)[:, :3].copy()
+        self.offsets = []  # per video, per frame: offset of bones_t
+        for v in self.videos:
+            o += per_video
+            self.offsets.append([])
+            for _ in range(v['frames']):
+                self.offsets[-1].append(o + 2 * POSE)
+                o += per_frame
+        self.x, self.colours, self.faces = read_ply(f'{folder}/meshes/canonical.ply')
+        self.weights = np.load(f'{folder}/meshes/skinning_weights.npy').astype(np.float64)
+        self.frame_paths = sorted(glob.glob(f'{folder}/meshes/frames/*.ply'))
+        if len(self.frame_paths) != sum(len(o) for o in self.offsets):
+            sys.exit(f'{folder}: {len(self.frame_paths)} frame meshes for '
+                     f'{sum(len(o) for o in self.offsets)} frames in the checkpoint')
+
+    def transforms(self, offset):
+        bt = self.params[offset:offset + POSE * self.num_bones].reshape(-1, POSE)
+        return [(quat_to_matrix(b[:4]), b[4:].copy()) for b in bt]
+
+    def blend(self, js, x=None, w=None):
+        x = self.x if x is None else x
+        w = self.weights if w is None else w
+        return sum(w[:, b:b + 1] * (x @ r.T + t) for b, (r, t) in enumerate(js))
+
+
+class FrameFit:
+    """Gauss-Newton on one frame's bone turns (R_b) and travels (tau_b):
+    T_b x = R_b (x - c_b) + c_b + tau_b, y = sum_b w_b T_b x, root G."""
+
+    def __init__(self, m, sub, pairs, intr, args):
+        self.m, self.sub, self.pairs, self.intr, self.a = m, sub, pairs, intr, args
+        self.xs = m.x[sub]
+        self.ws = m.weights[sub]
+        self.rel = self.xs[:, None, :] - m.centres[None]  # N x B x 3
+
+    def pose(self, rs, taus, g):
+        rot = np.einsum('bij,nbj->nbi', rs, self.rel)  # R_b (x - c_b)
+        y = np.einsum('nb,nbi->ni', self.ws, rot + self.m.centres[None] + taus[None])
+        cam = y @ g[0].T + g[1]
+        fx, fy, cx, cy = self.intr
+        uv = np.stack([fx * cam[:, 0] / cam[:, 2] + cx, fy * cam[:, 1] / cam[:, 2] + cy], -1)
+        # d uv / d theta: P G_R [-w_b [R_b(x-c_b)]x, w_b I]
+        z = cam[:, 2]
+        p = np.zeros((len(cam), 2, 3))
+        p[:, 0, 0], p[:, 0, 2] = fx / z, -fx * cam[:, 0] / z ** 2
+        p[:, 1, 1], p[:, 1, 2] = fy / z, -fy * cam[:, 1] / z ** 2
+        pg = p @ g[0]  # N x 2 x 3
+        jw = -np.einsum('nij,nbjk->nbik', pg, skew(rot)) * self.ws[:, :, None, None]
+        jt = pg[:, None] * self.ws[:, :, None, None]
+        jac = np.concatenate([jw, jt], -1)  # N x B x 2 x 6
+        jac = jac.transpose(0, 2, 1, 3).reshape(len(cam), 2, -1)
+        return uv, jac, rot
+
+    def fit(self, rs, taus, g, mask, targets, prev):
+        a, nb = self.a, self.m.num_bones
+        fg = np.argwhere(mask == 255)[:, ::-1] + 0.5  # (u, v) of object pixels
+        if len(fg) > a.cover_pixels:
+            fg = fg[np.random.default_rng(0).choice(len(fg), a.cover_pixels, replace=False)]
+        dt = ndimage.distance_transform_edt(mask != 255)
+        dt = np.where(mask == 128, 0.0, dt)
+        scale = self.intr[0] / g[1][2]  # pixels per model unit at the root
+        lam, cost = 1e-3, float('nan')
+        for _ in range(a.iterations):
+            uv, jac, rot = self.pose(rs, taus, g)
+            near = cKDTree(uv).query(fg)[1]
+
+            def system(uv, jac, rot, rs, taus):
+                rows, res = [], []
+                n = len(uv)
+                d, gx, gy = bilinear(dt, uv[:, 0], uv[:, 1])
+                s = np.sqrt(a.w_outside / n)
+                res.append(s * d)
+                rows.append(s * (gx[:, None] * jac[:, 0] + gy[:, None] * jac[:, 1]))
+
+                def points_to(idx, target, weight):
+                    # Huber (a.huber px) by reweighting, per 2D residual.
+                    s = np.sqrt(weight / max(len(idx), 1))
+                    r = uv[idx] - target
+                    nrm = np.linalg.norm(r, axis=1)
+                    hw = s * np.sqrt(np.where(nrm < a.huber, 1.0, a.huber / np.maximum(nrm, 1e-9)))
+                    res.append((hw[:, None] * r).ravel())
+                    rows.append((hw[:, None, None] * jac[idx]).reshape(-1, jac.shape[2]))
+
+                points_to(near, fg, a.w_cover)
+                if targets is not None:
+                    points_to(targets[0], targets[1], a.w_flow)
+                # joints: T_b x - T_b' x at shared points (pixels via scale)
+                np_ = sum(len(p[2]) for p in self.pairs)
+                s = np.sqrt(a.w_joint / max(np_, 1)) * scale
+                for b, c, pts in self.pairs:
+                    db = (rot[pts, b] + self.m.centres[b] + taus[b]
+                          - rot[pts, c] - self.m.centres[c] - taus[c])
+                    jr = np.zeros((len(pts), 3, 6 * nb))
+                    jr[:, :, 3 * b:3 * b + 3] = -skew(rot[pts, b])
+                    jr[:, :, 3 * c:3 * c + 3] = skew(rot[pts, c])
+                    jr[:, :, 3 * nb + 3 * b:3 * nb + 3 * b + 3] = np.eye(3)
+                    jr[:, :, 3 * nb + 3 * c:3 * nb + 3 * c + 3] = -np.eye(3)
+                    res.append((s * db).ravel())
+                    rows.append(s * jr.reshape(-1, 6 * nb))
+                # Smoothness to the previous frame (a video's first frame,
+                # which has none, to the rest pose) and a pull to the rest.
+                for ref, w in ((prev, a.w_smooth), (None, a.w_rest)):
+                    if w == 0:
+                        continue
+                    for b in range(nb):
+                        r0 = np.eye(3) if ref is None else ref[0][b]
+                        t0 = np.zeros(3) if ref is None else ref[1][b]
+                        om = Rotation.from_matrix(rs[b] @ r0.T).as_rotvec()
+                        jr = np.zeros((6, 6 * nb))
+                        jr[:3, 3 * b:3 * b + 3] = np.eye(3)
+                        jr[3:, 3 * nb + 3 * b:3 * nb + 3 * b + 3] = np.eye(3) * scale
+                        res.append(np.sqrt(w / nb) * np.concatenate([om * scale, (taus[b] - t0) * scale]))
+                        jr[:3] *= scale
+                        rows.append(np.sqrt(w / nb) * jr)
+                return np.concatenate(res), np.concatenate(rows)
+
+            # The projected-point jacobians are per bone [w, t]; permute them
+            # to [w_0..w_B, t_0..t_B] like the joint and smoothness rows.
+            perm = np.concatenate([np.arange(b * 6, b * 6 + 3) for b in range(nb)] +
+                                  [np.arange(b * 6 + 3, b * 6 + 6) for b in range(nb)])
+            jac = jac[:, :, perm]
+            r, jm = system(uv, jac, rot, rs, taus)
+            cost = r @ r
+            h, gvec = jm.T @ jm, jm.T @ r
+            for _ in range(8):
+                step = -np.linalg.solve(h + lam * np.diag(np.diag(h) + 1e-9), gvec)
+                nrs = np.stack([Rotation.from_rotvec(step[3 * b:3 * b + 3]).as_matrix() @ rs[b]
+                                for b in range(nb)])
+                ntaus = taus + step[3 * nb:].reshape(nb, 3)
+                uv2, jac2, rot2 = self.pose(nrs, ntaus, g)
+                r2, _ = system(uv2, jac2[:, :, perm], rot2, nrs, ntaus)
+                if r2 @ r2 < cost:
+                    rs, taus, lam = nrs, ntaus, max(lam / 3, 1e-6)
+                    break
+                lam *= 4
+            else:
+                break
+        return rs, taus, cost
+
+
+def visible_targets(m, sub, js, g, intr, flow, valid, mask_next, tol):
+    """The frame's visible fitted vertices (a z-buffer of all vertices) and
+    their projections moved by the flow (where valid and inside the next
+    mask)."""
+    fx, fy, cx, cy = intr
+    cam = m.blend(js) @ g[0].T + g[1]
+    u = fx * cam[:, 0] / cam[:, 2] + cx
+    v = fy * cam[:, 1] / cam[:, 2] + cy
+    h, w = valid.shape
+    iu, iv = np.floor(u).astype(int), np.floor(v).astype(int)
+    inside = (iu >= 0) & (iu < w) & (iv >= 0) & (iv < h)
+    zbuf = np.full((h, w), np.inf)
+    np.minimum.at(zbuf, (iv[inside], iu[inside]), cam[inside, 2])
+    s = sub[inside[sub]]
+    vis = cam[s, 2] <= zbuf[iv[s], iu[s]] + tol
+    s = s[vis]
+    f = flow[iv[s], iu[s]]
+    ok = valid[iv[s], iu[s]]
+    tgt = np.stack([u[s], v[s]], -1) + f
+    ti, tj = np.floor(tgt[:, 0]).astype(int), np.floor(tgt[:, 1]).astype(int)
+    ok &= (ti >= 0) & (ti < w) & (tj >= 0) & (tj < h)
+    ok[ok] &= mask_next[tj[ok], ti[ok]] == 255
+    pos = {k: i for i, k in enumerate(sub)}
+    return np.array([pos[k] for k in s[ok]], dtype=int), tgt[ok]
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument('folder')
+    p.add_argument('data')
+    p.add_argument('dst')
+    p.add_argument('--vertices', type=int, default=3000, help='fitted vertices (a random subset)')
+    p.add_argument('--cover-pixels', type=int, default=2000)
+    p.add_argument('--iterations', type=int, default=20)
+    p.add_argument('--w-outside', type=float, default=1.0)
+    p.add_argument('--w-cover', type=float, default=1.0)
+    p.add_argument('--w-flow', type=float, default=1.0)
+    p.add_argument('--w-joint', type=float, default=1.0)
+    p.add_argument('--w-smooth', type=float, default=0.01)
+    p.add_argument('--w-rest', type=float, default=0.0)
+    p.add_argument('--huber', type=float, default=2.0, help='px')
+    p.add_argument('--joint-weight', type=float, default=0.15,
+                   help='a point joins bones b, c when both weights exceed this')
+    p.add_argument('--visible-tol', type=float, default=0.05, help='z-buffer tolerance (model units)')
+    p.add_argument('--init-from', help='checkpoint whose bone transforms start every frame (diagnostic)')
+    p.add_argument('--compare-oracle', action='store_true')
+    a = p.parse_args()
+    m = Model(a.folder)
+    rng = np.random.default_rng(0)
+    sub = np.sort(rng.choice(len(m.x), min(a.vertices, len(m.x)), replace=False))
+    ws = m.weights[sub]
+    pairs = []
+    for b in range(m.num_bones):
+        for c in range(b + 1, m.num_bones):
+            pts = np.where((ws[:, b] > a.joint_weight) & (ws[:, c] > a.joint_weight))[0]
+            if len(pts):
+                pairs.append((b, c, pts[:40]))
+    print(f'{len(sub)} fitted vertices, {len(pairs)} bone pairs share skinning weight')
+    init = None
+    if a.init_from:
+        # Diagnostic: every frame starts from another checkpoint's transforms
+        # (e.g. the oracle's), to ask where the objective's minimum is.
+        init = Model.__new__(Model)
+        Model.__init__(init, a.folder)
+        raw = open(f'{a.init_from}/params.bin', 'rb').read()
+        init.params = np.frombuffer(raw[16:], '<f8')[:len(m.params)].copy()
+    data_videos = sorted(glob.glob(f'{a.data}/video_*'))
+    out_params = m.params.copy()
+    frame_meshes = []
+    k = 0
+    t0 = time.time()
+    fitted = {}
+    for vi, video in enumerate(m.videos):
+        intr = video['intrinsics']
+        prev = None
+        targets = None
+        for t in range(video['frames']):
+            js = m.transforms(m.offsets[vi][t])
+            posed = m.blend(js)
+            g = procrustes(posed, read_ply(m.frame_paths[k])[0], np.ones(len(m.x)))
+            mask = cv2.imread(f'{data_videos[vi]}/mask/{t:05d}.png', cv2.IMREAD_UNCHANGED)
+            if init is not None:
+                ji = init.transforms(init.offsets[vi][t])
+                rs = np.stack([r for r, _ in ji])
+                taus = np.stack([r @ c + tt - c for (r, tt), c in zip(ji, m.centres)])
+            elif prev is None:
+                rs = np.stack([r for r, _ in js])
+                taus = np.stack([r @ c + tt - c for (r, tt), c in zip(js, m.centres)])
+            else:
+                rs, taus = prev[0].copy(), prev[1].copy()
+            fit = FrameFit(m, sub, pairs, intr, a)
+            rs, taus, cost = fit.fit(rs, taus, g, mask, targets, prev)
+            prev = (rs, taus)
+            fitted[k] = (rs, taus, g)
+            jf = [(rs[b], m.centres[b] + taus[b] - rs[b] @ m.centres[b]) for b in range(m.num_bones)]
+            bt = out_params[m.offsets[vi][t]:][:POSE * m.num_bones].reshape(-1, POSE)
+            for b, (r, tt) in enumerate(jf):
+                bt[b, :4], bt[b, 4:] = matrix_to_quat(r), tt
+            frame_meshes.append(m.blend(jf) @ g[0].T + g[1])
+            if t + 1 < video['frames']:
+                flow, valid = read_flow(f'{data_videos[vi]}/flow/fw_1/{t:05d}.png')
+                mask_next = cv2.imread(f'{data_videos[vi]}/mask/{t + 1:05d}.png', cv2.IMREAD_UNCHANGED)
+                targets = visible_targets(m, sub, jf, g, intr, flow, valid, mask_next, a.visible_tol)
+            ang = np.degrees([Rotation.from_matrix(r).magnitude() for r in rs])
+            print(f'video {vi} frame {t:2d}: cost {cost:.3g}, bone turns mean {ang.mean():.1f} '
+                  f'max {ang.max():.1f} deg, flow targets {len(targets[0]) if targets else 0} '
+                  f'({time.time() - t0:.0f} s)', flush=True)
+            k += 1
+    os.makedirs(a.dst, exist_ok=True)
+    frames = f'{a.dst}/frames'
+    os.makedirs(frames, exist_ok=True)
+    for path, v in zip(m.frame_paths, frame_meshes):
+        write_ply(f'{frames}/{os.path.basename(path)}', v, m.colours, m.faces)
+    tmp = f'{a.dst}/checkpoint.tmp'
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(f'{a.folder}/checkpoint', tmp)
+    with open(f'{tmp}/params.bin', 'wb') as f:
+        f.write(m.raw[:16] + out_params.astype('<f8').tobytes() + m.raw[16 + 8 * len(out_params):])
+    shutil.rmtree(f'{a.dst}/checkpoint', ignore_errors=True)
+    os.replace(tmp, f'{a.dst}/checkpoint')
+    print(f'wrote {a.dst}/checkpoint and {len(frame_meshes)} meshes in {a.dst}/frames')
+    if a.compare_oracle:
+        from oracle import Solve
+        s = Solve(a.folder, a.data, 1)
+        err, ang_o, ang_e = [], [], []
+        for k, (rs, taus, g) in fitted.items():
+            for b, (rc, tc) in enumerate(s.lbs_fit(k)):
+                ro = g[0].T @ rc
+                err.append(Rotation.from_matrix(rs[b] @ ro.T).magnitude())
+                ang_o.append(Rotation.from_matrix(ro).magnitude())
+                ang_e.append(Rotation.from_matrix(rs[b]).magnitude())
+        err, ang_o, ang_e = (np.degrees(np.reshape(e, (-1, m.num_bones))) for e in (err, ang_o, ang_e))
+        order = np.argsort(m.centres[:, 1])
+        for b in order:
+            print(f'bone {b:2d} c=({m.centres[b, 0]:+.2f},{m.centres[b, 1]:+.2f},{m.centres[b, 2]:+.2f}) '
+                  f'turn oracle {ang_o[:, b].mean():5.1f} fit {ang_e[:, b].mean():5.1f} '
+                  f'error {err[:, b].mean():5.1f} deg (identity error {ang_o[:, b].mean():5.1f})')
+        print(f'all bones: error {err.mean():.1f} deg against {ang_o.mean():.1f} at the identity')
+
+
+if __name__ == '__main__':
+    main()
