@@ -26,17 +26,16 @@
 #             the previous frame, as targets (the motion between frames);
 #   joints:   where two bones share skinning weight they move that part alike;
 #   smooth:   the turn and travel change little from the previous frame.
-import argparse, glob, os, shutil, struct, sys, time
+import argparse, glob, os, sys, time
 
 import cv2
 import numpy as np
-import yaml
 from scipy import ndimage
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from oracle import POSE, matrix_to_quat, procrustes, quat_to_matrix, read_ply, write_ply  # noqa: E402
+from oracle import POSE, Checkpoint, matrix_to_quat, procrustes, read_ply, write_ply  # noqa: E402
 
 
 def skew(a):
@@ -70,45 +69,21 @@ def bilinear(img, u, v):
     return val, gx, gy
 
 
-class Model:
+class Model(Checkpoint):
+    """F/checkpoint and its extraction F/meshes."""
+
     def __init__(self, folder):
-        ck = f'{folder}/checkpoint'
-        model = yaml.safe_load(open(f'{ck}/model.yaml'))
-        opts = model['options']
-        if opts.get('delta_skinning', {}).get('enabled'):
-            sys.exit(f'{ck}: delta skinning is not supported')
-        self.num_bones = opts['num_bones']
-        self.videos = model['videos']
-        raw = open(f'{ck}/params.bin', 'rb').read()
-        n = struct.unpack('<Q', raw[8:16])[0]
-        self.raw, self.params = raw, np.frombuffer(raw[16:16 + 8 * n], '<f8').copy()
-        per_video = 4 + opts['field']['appearance_code_dim']
-        per_frame = 2 * POSE + POSE * self.num_bones
-        tail = sum(per_video + v['frames'] * per_frame for v in self.videos)
-        o = len(self.params) - tail
-        self.centres = self.params[o - 10 * self.num_bones:o].reshape(-1, 10)[:, :3].copy()
-        self.offsets = []  # per video, per frame: offset of bones_t
-        for v in self.videos:
-            o += per_video
-            self.offsets.append([])
-            for _ in range(v['frames']):
-                self.offsets[-1].append(o + 2 * POSE)
-                o += per_frame
+        Checkpoint.__init__(self, f'{folder}/checkpoint')
+        self.centres = self.bone_centres
         self.x, self.colours, self.faces = read_ply(f'{folder}/meshes/canonical.ply')
         self.weights = np.load(f'{folder}/meshes/skinning_weights.npy').astype(np.float64)
         self.frame_paths = sorted(glob.glob(f'{folder}/meshes/frames/*.ply'))
-        if len(self.frame_paths) != sum(len(o) for o in self.offsets):
+        if len(self.frame_paths) != len(self.bones_t_offsets):
             sys.exit(f'{folder}: {len(self.frame_paths)} frame meshes for '
-                     f'{sum(len(o) for o in self.offsets)} frames in the checkpoint')
+                     f'{len(self.bones_t_offsets)} frames in the checkpoint')
 
-    def transforms(self, offset):
-        bt = self.params[offset:offset + POSE * self.num_bones].reshape(-1, POSE)
-        return [(quat_to_matrix(b[:4]), b[4:].copy()) for b in bt]
-
-    def blend(self, js, x=None, w=None):
-        x = self.x if x is None else x
-        w = self.weights if w is None else w
-        return sum(w[:, b:b + 1] * (x @ r.T + t) for b, (r, t) in enumerate(js))
+    def blend(self, js):
+        return sum(self.weights[:, b:b + 1] * (self.x @ r.T + t) for b, (r, t) in enumerate(js))
 
 
 class FrameFit:
@@ -284,14 +259,11 @@ def main():
             if len(pts):
                 pairs.append((b, c, pts[:40]))
     print(f'{len(sub)} fitted vertices, {len(pairs)} bone pairs share skinning weight')
-    init = None
-    if a.init_from:
-        # Diagnostic: every frame starts from another checkpoint's transforms
-        # (e.g. the oracle's), to ask where the objective's minimum is.
-        init = Model.__new__(Model)
-        Model.__init__(init, a.folder)
-        raw = open(f'{a.init_from}/params.bin', 'rb').read()
-        init.params = np.frombuffer(raw[16:], '<f8')[:len(m.params)].copy()
+    # Diagnostic: every frame starts from another checkpoint's transforms
+    # (e.g. the oracle's), to ask where the objective's minimum is.
+    init = Checkpoint(a.init_from) if a.init_from else None
+    if init is not None and init.bones_t_offsets != m.bones_t_offsets:
+        sys.exit(f'{a.init_from}: not the layout of {a.folder}/checkpoint')
     data_videos = sorted(glob.glob(f'{a.data}/video_*'))
     out_params = m.params.copy()
     frame_meshes = []
@@ -303,12 +275,12 @@ def main():
         prev = None
         targets = None
         for t in range(video['frames']):
-            js = m.transforms(m.offsets[vi][t])
+            js = m.transforms(k)
             posed = m.blend(js)
             g = procrustes(posed, read_ply(m.frame_paths[k])[0], np.ones(len(m.x)))
             mask = cv2.imread(f'{data_videos[vi]}/mask/{t:05d}.png', cv2.IMREAD_UNCHANGED)
             if init is not None:
-                ji = init.transforms(init.offsets[vi][t])
+                ji = init.transforms(k)
                 rs = np.stack([r for r, _ in ji])
                 taus = np.stack([r @ c + tt - c for (r, tt), c in zip(ji, m.centres)])
             elif prev is None:
@@ -321,7 +293,7 @@ def main():
             prev = (rs, taus)
             fitted[k] = (rs, taus, g)
             jf = [(rs[b], m.centres[b] + taus[b] - rs[b] @ m.centres[b]) for b in range(m.num_bones)]
-            bt = out_params[m.offsets[vi][t]:][:POSE * m.num_bones].reshape(-1, POSE)
+            bt = out_params[m.bones_t_offsets[k]:][:POSE * m.num_bones].reshape(-1, POSE)
             for b, (r, tt) in enumerate(jf):
                 bt[b, :4], bt[b, 4:] = matrix_to_quat(r), tt
             frame_meshes.append(m.blend(jf) @ g[0].T + g[1])
@@ -339,13 +311,7 @@ def main():
     os.makedirs(frames, exist_ok=True)
     for path, v in zip(m.frame_paths, frame_meshes):
         write_ply(f'{frames}/{os.path.basename(path)}', v, m.colours, m.faces)
-    tmp = f'{a.dst}/checkpoint.tmp'
-    shutil.rmtree(tmp, ignore_errors=True)
-    shutil.copytree(f'{a.folder}/checkpoint', tmp)
-    with open(f'{tmp}/params.bin', 'wb') as f:
-        f.write(m.raw[:16] + out_params.astype('<f8').tobytes() + m.raw[16 + 8 * len(out_params):])
-    shutil.rmtree(f'{a.dst}/checkpoint', ignore_errors=True)
-    os.replace(tmp, f'{a.dst}/checkpoint')
+    m.write(f'{a.dst}/checkpoint', out_params)
     print(f'wrote {a.dst}/checkpoint and {len(frame_meshes)} meshes in {a.dst}/frames')
     if a.compare_oracle:
         from oracle import Solve

@@ -86,17 +86,20 @@ def matrix_to_quat(r):
     return np.array([w, x, y, z])
 
 
-class Solve:
-    """A finished solve, its dataset's ground truth and the correspondence."""
+class Checkpoint:
+    """A banmo checkpoint's parameters (params.bin) and where its rest bones
+    and per-frame bone transforms are in them."""
 
-    def __init__(self, out, data, corr_frames):
-        model = yaml.safe_load(open(f'{out}/checkpoint/model.yaml'))
+    def __init__(self, path):
+        model = yaml.safe_load(open(f'{path}/model.yaml'))
         opts = model['options']
         if opts.get('delta_skinning', {}).get('enabled'):
-            sys.exit(f'{out}: delta skinning is not supported (its pose codes change the layout)')
+            sys.exit(f'{path}: delta skinning is not supported (its pose codes change the layout)')
+        self.path = path
         self.num_bones = opts['num_bones']
-        self.frames_per_video = [v['frames'] for v in model['videos']]
-        raw = open(f'{out}/checkpoint/params.bin', 'rb').read()
+        self.videos = model['videos']
+        self.frames_per_video = [v['frames'] for v in self.videos]
+        raw = open(f'{path}/params.bin', 'rb').read()
         n = struct.unpack('<Q', raw[8:16])[0]
         self.raw, self.params = raw, np.frombuffer(raw[16:16 + 8 * n], '<f8').copy()
         # Per video: intrinsics (4), appearance code; per frame: root_delta,
@@ -104,15 +107,39 @@ class Solve:
         per_video = 4 + opts['field']['appearance_code_dim']
         per_frame = 2 * POSE + POSE * self.num_bones
         tail = sum(per_video + t * per_frame for t in self.frames_per_video)
-        self.bones_t_offsets = []
+        self.bones_t_offsets = []  # frame by frame, video-major
         o = len(self.params) - tail
         # Rest bones (10 each: centre, orientation, log scales) just before.
-        self.bone_centres = self.params[o - 10 * self.num_bones:o].reshape(-1, 10)[:, :3]
+        self.bone_centres = self.params[o - 10 * self.num_bones:o].reshape(-1, 10)[:, :3].copy()
         for frames in self.frames_per_video:
             o += per_video
             for _ in range(frames):
                 self.bones_t_offsets.append(o + 2 * POSE)
                 o += per_frame
+
+    def transforms(self, k, params=None):
+        """Frame k's bone transforms J_b^t as (R, t) pairs."""
+        p = self.params if params is None else params
+        bt = p[self.bones_t_offsets[k]:][:POSE * self.num_bones].reshape(-1, POSE)
+        return [(quat_to_matrix(b[:4]), b[4:].copy()) for b in bt]
+
+    def write(self, dst, params):
+        """A copy of this checkpoint with these parameters, written through a
+        temporary folder."""
+        tmp = dst + '.tmp'
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.copytree(self.path, tmp)
+        with open(f'{tmp}/params.bin', 'wb') as f:
+            f.write(self.raw[:16] + params.astype('<f8').tobytes() + self.raw[16 + 8 * len(params):])
+        shutil.rmtree(dst, ignore_errors=True)
+        os.replace(tmp, dst)
+
+
+class Solve(Checkpoint):
+    """A finished solve, its dataset's ground truth and the correspondence."""
+
+    def __init__(self, out, data, corr_frames):
+        Checkpoint.__init__(self, f'{out}/checkpoint')
         self.x, self.colours, self.faces = read_ply(f'{out}/meshes/canonical.ply')
         self.weights = np.load(f'{out}/meshes/skinning_weights.npy').astype(np.float64)
         self.frame_paths = sorted(glob.glob(f'{out}/meshes/frames/*.ply'))
@@ -132,8 +159,7 @@ class Solve:
 
     def learnt_transforms(self, k):
         """Frame k's bone transforms (root frame) and the fitted root G."""
-        bt = self.params[self.bones_t_offsets[k]:][:POSE * self.num_bones].reshape(-1, POSE)
-        js = [(quat_to_matrix(b[:4]), b[4:]) for b in bt]
+        js = self.transforms(k)
         posed = sum(self.weights[:, b:b + 1] * (self.x @ r.T + t) for b, (r, t) in enumerate(js))
         g = procrustes(posed, self.posed[k], np.ones(len(self.x)))
         residual = np.abs(posed @ g[0].T + g[1] - self.posed[k]).max()
@@ -198,13 +224,7 @@ def checkpoint(args):
             bt[b, :4], bt[b, 4:] = matrix_to_quat(r), t
             learnt.append(Rotation.from_matrix(js[b][0]).magnitude())
             oracle.append(Rotation.from_matrix(r).magnitude())
-    tmp = args.dst + '.tmp'
-    shutil.rmtree(tmp, ignore_errors=True)
-    shutil.copytree(f'{args.out}/checkpoint', tmp)
-    with open(f'{tmp}/params.bin', 'wb') as f:
-        f.write(s.raw[:16] + params.astype('<f8').tobytes() + s.raw[16 + 8 * len(params):])
-    shutil.rmtree(args.dst, ignore_errors=True)
-    os.replace(tmp, args.dst)
+    s.write(args.dst, params)
     print(f'wrote {args.dst}: bone rotation mean {np.degrees(np.mean(learnt)):.1f} deg learnt, '
           f'{np.degrees(np.mean(oracle)):.1f} deg oracle')
 
