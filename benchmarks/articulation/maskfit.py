@@ -5,7 +5,7 @@
 # re-initialisation. benchmarks/articulation/README.md has the measurements.
 # Needs python3-numpy, python3-scipy, python3-yaml and python3-opencv.
 #
-#   maskfit.py F DATA DST [--compare-oracle]
+#   maskfit.py F DATA DST [--compare-oracle] [--init-from CK] [--w-... W]
 #
 # F is a folder with F/checkpoint (a banmo checkpoint, e.g. right after a
 # bone re-initialisation), F/meshes (`banmo extract` of it: canonical.ply,
@@ -14,10 +14,10 @@
 # the fitted bone transforms (DST/checkpoint) and the posed meshes
 # (DST/frames) for `banmo eval`.
 #
-# Per video, frame by frame (each frame starts from the previous one's fit),
-# Gauss-Newton on the 6 B transform parameters of the frame (B bones: a turn
-# about the rest bone centre and the centre's travel), the root pose fixed at
-# the checkpoint's, in pixels:
+# Per video, frame by frame (each frame starts from the previous one's fit,
+# the first from the checkpoint's), Levenberg-Marquardt on the 6 B transform
+# parameters of the frame (B bones: a turn about the rest bone centre and the
+# centre's travel), the root pose fixed at the checkpoint's, in pixels:
 #   outside:  the distance transform of the mask's background at each posed
 #             vertex's projection (vertices must fall inside the mask);
 #   cover:    each object pixel to the nearest projected vertex (the mask
@@ -25,7 +25,13 @@
 #   flow:     the previous frame's visible vertices, moved by the flow from
 #             the previous frame, as targets (the motion between frames);
 #   joints:   where two bones share skinning weight they move that part alike;
-#   smooth:   the turn and travel change little from the previous frame.
+#   smooth:   the turn and travel change little from the previous frame
+#             (a video's first frame: from the rest pose);
+#   rest:     a pull to the rest pose (off by default).
+# --init-from CK starts every frame from CK's transforms instead (a
+# diagnostic: where is the objective's minimum?); --compare-oracle prints,
+# per bone, the fitted turn against oracle.py's (ground truth: F/eval and
+# DATA's meshes).
 import argparse, glob, os, sys, time
 
 import cv2
@@ -51,6 +57,13 @@ def read_flow(path):
         sys.exit(f'{path}: cannot read the flow PNG')
     img = img[..., ::-1].astype(np.float64)  # BGR -> RGB
     return (img[..., :2] - 2 ** 15) / 64.0, img[..., 2] > 0
+
+
+def read_mask(path):
+    img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    if img is None or img.ndim != 2:
+        sys.exit(f'{path}: cannot read the mask (8-bit grey PNG expected)')
+    return img
 
 
 def bilinear(img, u, v):
@@ -265,6 +278,8 @@ def main():
     if init is not None and init.bones_t_offsets != m.bones_t_offsets:
         sys.exit(f'{a.init_from}: not the layout of {a.folder}/checkpoint')
     data_videos = sorted(glob.glob(f'{a.data}/video_*'))
+    if len(data_videos) != len(m.videos):
+        sys.exit(f'{a.data}: {len(data_videos)} video_* folders, expected {len(m.videos)} (the checkpoint\'s videos)')
     out_params = m.params.copy()
     frame_meshes = []
     k = 0
@@ -278,7 +293,7 @@ def main():
             js = m.transforms(k)
             posed = m.blend(js)
             g = procrustes(posed, read_ply(m.frame_paths[k])[0], np.ones(len(m.x)))
-            mask = cv2.imread(f'{data_videos[vi]}/mask/{t:05d}.png', cv2.IMREAD_UNCHANGED)
+            mask = read_mask(f'{data_videos[vi]}/mask/{t:05d}.png')
             if init is not None:
                 ji = init.transforms(k)
                 rs = np.stack([r for r, _ in ji])
@@ -299,7 +314,7 @@ def main():
             frame_meshes.append(m.blend(jf) @ g[0].T + g[1])
             if t + 1 < video['frames']:
                 flow, valid = read_flow(f'{data_videos[vi]}/flow/fw_1/{t:05d}.png')
-                mask_next = cv2.imread(f'{data_videos[vi]}/mask/{t + 1:05d}.png', cv2.IMREAD_UNCHANGED)
+                mask_next = read_mask(f'{data_videos[vi]}/mask/{t + 1:05d}.png')
                 targets = visible_targets(m, sub, jf, g, intr, flow, valid, mask_next, a.visible_tol)
             ang = np.degrees([Rotation.from_matrix(r).magnitude() for r in rs])
             print(f'video {vi} frame {t:2d}: cost {cost:.3g}, bone turns mean {ang.mean():.1f} '

@@ -39,6 +39,8 @@ def main():
     psi /= np.linalg.norm(psi, axis=1, keepdims=True) + 1e-12
     leg_vertex = (m.centres[:, 1] < -0.15)[m.weights.argmax(1)]
     videos = sorted(glob.glob(f'{data}/video_*'))
+    if len(videos) != len(m.videos):
+        sys.exit(f'{data}: {len(videos)} video_* folders, expected {len(m.videos)} (the checkpoint\'s videos)')
     cosines, err, err_legs = [], {n: [] for n, _ in motions}, {n: [] for n, _ in motions}
     k = 0
     for vi, video in enumerate(m.videos):

@@ -117,10 +117,9 @@ class Checkpoint:
                 self.bones_t_offsets.append(o + 2 * POSE)
                 o += per_frame
 
-    def transforms(self, k, params=None):
+    def transforms(self, k):
         """Frame k's bone transforms J_b^t as (R, t) pairs."""
-        p = self.params if params is None else params
-        bt = p[self.bones_t_offsets[k]:][:POSE * self.num_bones].reshape(-1, POSE)
+        bt = self.params[self.bones_t_offsets[k]:][:POSE * self.num_bones].reshape(-1, POSE)
         return [(quat_to_matrix(b[:4]), b[4:].copy()) for b in bt]
 
     def write(self, dst, params):
