@@ -27,7 +27,11 @@
 #   joints:   where two bones share skinning weight they move that part alike;
 #   smooth:   the turn and travel change little from the previous frame
 #             (a video's first frame: from the rest pose);
-#   rest:     a pull to the rest pose (off by default).
+#   rest:     a pull to the rest pose (off by default);
+#   match:    (--w-match > 0; off by default) object pixels to the fitted
+#             vertex whose embedding is most similar to their feature, the
+#             embedding being each vertex's mean pixel feature under the
+#             checkpoint's motion (regressed directly, not the learnt one).
 # --init-from CK starts every frame from CK's transforms instead (a
 # diagnostic: where is the objective's minimum?); --compare-oracle prints,
 # per bone, the fitted turn against oracle.py's (ground truth: F/eval and
@@ -127,7 +131,7 @@ class FrameFit:
         jac = jac.transpose(0, 2, 1, 3).reshape(len(cam), 2, -1)
         return uv, jac, rot
 
-    def fit(self, rs, taus, g, mask, targets, prev):
+    def fit(self, rs, taus, g, mask, targets, prev, matches=None):
         a, nb = self.a, self.m.num_bones
         fg = np.argwhere(mask == 255)[:, ::-1] + 0.5  # (u, v) of object pixels
         if len(fg) > a.cover_pixels:
@@ -160,6 +164,8 @@ class FrameFit:
                 points_to(near, fg, a.w_cover)
                 if targets is not None:
                     points_to(targets[0], targets[1], a.w_flow)
+                if matches is not None:
+                    points_to(matches[0], matches[1], a.w_match)
                 # joints: T_b x - T_b' x at shared points (pixels via scale)
                 np_ = sum(len(p[2]) for p in self.pairs)
                 s = np.sqrt(a.w_joint / max(np_, 1)) * scale
@@ -214,6 +220,45 @@ class FrameFit:
         return rs, taus, cost
 
 
+def mean_feature_embedding(m, sub, data_videos, tol):
+    """Per fitted vertex, the normalised mean of the pixel features it is
+    seen on (z-buffer, inside the mask) under the checkpoint's motion: an
+    embedding regressed directly on the features, in place of the learnt
+    one. Rows of vertices never seen are zero."""
+    acc = np.zeros((len(sub), 16))
+    k = 0
+    for vi, video in enumerate(m.videos):
+        fx, fy, cx, cy = video['intrinsics']
+        for t in range(video['frames']):
+            cam = read_ply(m.frame_paths[k])[0]
+            feat = np.load(f'{data_videos[vi]}/features/{t:05d}.npy').astype(np.float64)
+            mask = read_mask(f'{data_videos[vi]}/mask/{t:05d}.png') == 255
+            h, w = mask.shape
+            iu = np.floor(fx * cam[:, 0] / cam[:, 2] + cx).astype(int)
+            iv = np.floor(fy * cam[:, 1] / cam[:, 2] + cy).astype(int)
+            inside = (iu >= 0) & (iu < w) & (iv >= 0) & (iv < h)
+            zbuf = np.full((h, w), np.inf)
+            np.minimum.at(zbuf, (iv[inside], iu[inside]), cam[inside, 2])
+            s = inside[sub]
+            s[s] &= cam[sub[s], 2] <= zbuf[iv[sub[s]], iu[sub[s]]] + tol
+            s[s] &= mask[iv[sub[s]], iu[sub[s]]]
+            acc[s] += feat[iv[sub[s]], iu[sub[s]]]
+            k += 1
+    return acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)
+
+
+def feature_matches(psi, feat, mask, count, rng):
+    """Up to `count` object pixels, each with the fitted vertex of the most
+    similar embedding: (vertex indices into the subset, pixel centres)."""
+    ys, xs = np.nonzero(mask == 255)
+    if len(ys) > count:
+        pick = rng.choice(len(ys), count, replace=False)
+        ys, xs = ys[pick], xs[pick]
+    f = feat[ys, xs].astype(np.float64)
+    f /= np.linalg.norm(f, axis=1, keepdims=True) + 1e-12
+    return (f @ psi.T).argmax(1), np.stack([xs + 0.5, ys + 0.5], -1)
+
+
 def visible_targets(m, sub, js, g, intr, flow, valid, mask_next, tol):
     """The frame's visible fitted vertices (a z-buffer of all vertices) and
     their projections moved by the flow (where valid and inside the next
@@ -254,6 +299,9 @@ def main():
     p.add_argument('--w-joint', type=float, default=1.0)
     p.add_argument('--w-smooth', type=float, default=0.01)
     p.add_argument('--w-rest', type=float, default=0.0)
+    p.add_argument('--w-match', type=float, default=0.0,
+                   help='feature matches against a mean-feature embedding (0 = off)')
+    p.add_argument('--match-pixels', type=int, default=1000)
     p.add_argument('--huber', type=float, default=2.0, help='px')
     p.add_argument('--joint-weight', type=float, default=0.15,
                    help='a point joins bones b, c when both weights exceed this')
@@ -280,6 +328,9 @@ def main():
     data_videos = sorted(glob.glob(f'{a.data}/video_*'))
     if len(data_videos) != len(m.videos):
         sys.exit(f'{a.data}: {len(data_videos)} video_* folders, expected {len(m.videos)} (the checkpoint\'s videos)')
+    psi = None
+    if a.w_match > 0:
+        psi = mean_feature_embedding(m, sub, data_videos, a.visible_tol)
     out_params = m.params.copy()
     frame_meshes = []
     k = 0
@@ -304,7 +355,11 @@ def main():
             else:
                 rs, taus = prev[0].copy(), prev[1].copy()
             fit = FrameFit(m, sub, pairs, intr, a)
-            rs, taus, cost = fit.fit(rs, taus, g, mask, targets, prev)
+            matches = None
+            if psi is not None:
+                feat = np.load(f'{data_videos[vi]}/features/{t:05d}.npy')
+                matches = feature_matches(psi, feat, mask, a.match_pixels, np.random.default_rng(k))
+            rs, taus, cost = fit.fit(rs, taus, g, mask, targets, prev, matches)
             prev = (rs, taus)
             fitted[k] = (rs, taus, g)
             jf = [(rs[b], m.centres[b] + taus[b] - rs[b] @ m.centres[b]) for b in range(m.num_bones)]

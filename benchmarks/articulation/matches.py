@@ -3,7 +3,7 @@
 # benchmarks/articulation/README.md has the measurements. Needs
 # python3-numpy, python3-scipy, python3-yaml and python3-opencv.
 #
-#   matches.py F DATA [OTHER_CHECKPOINT ...]
+#   matches.py F DATA [OTHER_CHECKPOINT ...] [--mean-features]
 #
 # F as for maskfit.py (F/checkpoint and its `banmo extract` in F/meshes,
 # with embedding.npy). Every object pixel of every frame of DATA is matched
@@ -13,34 +13,41 @@
 # pixel and its matched vertex posed and projected with F's bone transforms
 # and with each OTHER_CHECKPOINT's (same layout, e.g. `oracle.py
 # checkpoint`), over all pixels and over the pixels matched to leg vertices
-# (dominant bone centred below canonical y = -0.15).
+# (dominant bone centred below canonical y = -0.15). --mean-features: the
+# embedding is each vertex's mean pixel feature under F's motion
+# (maskfit.py's mean_feature_embedding) instead of embedding.npy.
 import glob, os, sys
 
 import cv2
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from maskfit import Model  # noqa: E402
+from maskfit import Model, mean_feature_embedding  # noqa: E402
 from oracle import Checkpoint, procrustes, read_ply  # noqa: E402
 
 
 def main():
-    if len(sys.argv) < 3 or sys.argv[1] in ('-h', '--help'):
-        sys.exit('usage: matches.py F DATA [OTHER_CHECKPOINT ...] (see the comment at its top)')
-    folder, data = sys.argv[1], sys.argv[2]
+    args = [x for x in sys.argv[1:] if x != '--mean-features']
+    if len(args) < 2 or args[0] in ('-h', '--help'):
+        sys.exit('usage: matches.py F DATA [OTHER_CHECKPOINT ...] [--mean-features] '
+                 '(see the comment at its top)')
+    folder, data = args[0], args[1]
     m = Model(folder)
     motions = [('learnt', m)]
-    for path in sys.argv[3:]:
+    for path in args[2:]:
         c = Checkpoint(path)
         if c.bones_t_offsets != m.bones_t_offsets:
             sys.exit(f'{path}: not the layout of {folder}/checkpoint')
         motions.append((path, c))
-    psi = np.load(f'{folder}/meshes/embedding.npy').astype(np.float64)
-    psi /= np.linalg.norm(psi, axis=1, keepdims=True) + 1e-12
-    leg_vertex = (m.centres[:, 1] < -0.15)[m.weights.argmax(1)]
     videos = sorted(glob.glob(f'{data}/video_*'))
     if len(videos) != len(m.videos):
         sys.exit(f'{data}: {len(videos)} video_* folders, expected {len(m.videos)} (the checkpoint\'s videos)')
+    if '--mean-features' in sys.argv:
+        psi = mean_feature_embedding(m, np.arange(len(m.x)), videos, tol=0.05)
+    else:
+        psi = np.load(f'{folder}/meshes/embedding.npy').astype(np.float64)
+        psi /= np.linalg.norm(psi, axis=1, keepdims=True) + 1e-12
+    leg_vertex = (m.centres[:, 1] < -0.15)[m.weights.argmax(1)]
     cosines, err, err_legs = [], {n: [] for n, _ in motions}, {n: [] for n, _ in motions}
     k = 0
     for vi, video in enumerate(m.videos):
