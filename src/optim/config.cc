@@ -131,6 +131,23 @@ void VisitFields(V& v, PoseSolveConfig& o) {
 }
 
 template <class V>
+void VisitFields(V& v, BoneRegistrationConfig& o) {
+  v("at", o.at);
+  v("resolution", o.resolution);
+  v("vertices", o.vertices);
+  v("match_pixels", o.match_pixels);
+  v("match_weight", o.match_weight);
+  v("huber_px", o.huber_px);
+  v("joint_weight", o.joint_weight);
+  v("joint_min_weight", o.joint_min_weight);
+  v("joint_points", o.joint_points);
+  v("smooth_weight", o.smooth_weight);
+  v("rest_weight", o.rest_weight);
+  v("visible_tolerance", o.visible_tolerance);
+  v("iterations", o.iterations);
+}
+
+template <class V>
 void VisitFields(V& v, StageConfig& o) {
   v("name", o.name);
   v("batches", o.batches);
@@ -144,6 +161,7 @@ void VisitFields(V& v, StageConfig& o) {
   v("sampling", o.sampling);
   v("schedule", o.schedule);
   v("pose_solve", o.pose_solve);
+  v("bone_registration", o.bone_registration);
   v("bone_steps_about_centres", o.bone_steps_about_centres);
   v("bone_steps_articulated", o.bone_steps_articulated);
   v("checkpoint_every", o.checkpoint_every);
@@ -709,6 +727,27 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
     c.Fail(q + ".search_keep", "expected <= pose_solve.search_rotations (",
            s.pose_solve.search_rotations, "), got ", s.pose_solve.search_keep);
   }
+
+  const std::string r = p + ".bone_registration";
+  const BoneRegistrationConfig& reg = s.bone_registration;
+  c.IncreasingFractions(r + ".at", reg.at);
+  if (!reg.at.empty() && constant.Contains(ParameterGroup::kBonesT)) {
+    c.Fail(r + ".at",
+           "a bone registration moves the bone transforms, which this stage holds "
+           "constant (bones_t)");
+  }
+  c.Positive(r + ".resolution", reg.resolution);
+  c.Positive(r + ".vertices", reg.vertices);
+  c.Positive(r + ".match_pixels", reg.match_pixels);
+  c.Positive(r + ".match_weight", reg.match_weight);
+  c.Positive(r + ".huber_px", reg.huber_px);
+  c.NonNegative(r + ".joint_weight", reg.joint_weight);
+  c.Fraction(r + ".joint_min_weight", reg.joint_min_weight);
+  c.NonNegative(r + ".joint_points", reg.joint_points);
+  c.NonNegative(r + ".smooth_weight", reg.smooth_weight);
+  c.NonNegative(r + ".rest_weight", reg.rest_weight);
+  c.Positive(r + ".visible_tolerance", reg.visible_tolerance);
+  c.Positive(r + ".iterations", reg.iterations);
 
   if (s.bone_steps_articulated && s.bone_steps_about_centres) {
     c.Fail(p + ".bone_steps_articulated",

@@ -15,6 +15,7 @@
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/regularizers.h"
 #include "banmo/optim/auto_size.h"
+#include "banmo/optim/bone_registration.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/pose_solve.h"
 #include "banmo/optim/ray_sampler.h"
@@ -375,6 +376,22 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
                     stage.name.c_str(), freeze);
         std::fflush(stdout);
       }
+    }
+  }
+  for (double at : stage.bone_registration.at) {
+    if (model.num_bones() == 0 || batch_index != stage.BatchAt(at)) continue;
+    const BoneRegistrationReport report = RegisterBoneMotion(
+        &model, dataset_, bounds_, stage.bone_registration, static_cast<uint32_t>(c->state->rng()));
+    if (report.registered) {
+      // The bone transforms jumped: their Adam moments are stale.
+      for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
+        m = m->first.find("bones_t") != std::string::npos ? c->state->adam.erase(m) : std::next(m);
+      }
+      sp->batch().Invalidate();
+    }
+    if (!c->options.quiet) {
+      std::printf("[%s] %s\n", stage.name.c_str(), report.Describe().c_str());
+      std::fflush(stdout);
     }
   }
   // Automatic model sizing (optim/auto_size.h), first stage only.

@@ -415,6 +415,37 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).pose_solve.search_rotations = 0; }},
       {"stages[1].pose_solve.search_keep",
        [&](SolverConfig* c) { S(c).pose_solve.search_keep = 100; }},
+      {"stages[1].bone_registration.at[0]",
+       [&](SolverConfig* c) { S(c).bone_registration.at = {1.5}; }},
+      {"stages[1].bone_registration.at",
+       [&](SolverConfig* c) {
+         S(c).bone_registration.at = {0.5};
+         S(c).constant = {ParameterGroup::kBonesT};
+       }},
+      {"stages[1].bone_registration.resolution",
+       [&](SolverConfig* c) { S(c).bone_registration.resolution = 0; }},
+      {"stages[1].bone_registration.vertices",
+       [&](SolverConfig* c) { S(c).bone_registration.vertices = 0; }},
+      {"stages[1].bone_registration.match_pixels",
+       [&](SolverConfig* c) { S(c).bone_registration.match_pixels = -1; }},
+      {"stages[1].bone_registration.match_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.match_weight = 0; }},
+      {"stages[1].bone_registration.huber_px",
+       [&](SolverConfig* c) { S(c).bone_registration.huber_px = -2; }},
+      {"stages[1].bone_registration.joint_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.joint_weight = -1; }},
+      {"stages[1].bone_registration.joint_min_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.joint_min_weight = 1.5; }},
+      {"stages[1].bone_registration.joint_points",
+       [&](SolverConfig* c) { S(c).bone_registration.joint_points = -1; }},
+      {"stages[1].bone_registration.smooth_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.smooth_weight = -0.1; }},
+      {"stages[1].bone_registration.rest_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.rest_weight = -0.1; }},
+      {"stages[1].bone_registration.visible_tolerance",
+       [&](SolverConfig* c) { S(c).bone_registration.visible_tolerance = 0; }},
+      {"stages[1].bone_registration.iterations",
+       [&](SolverConfig* c) { S(c).bone_registration.iterations = 0; }},
       {"model.delta_skinning.width",
        [&](SolverConfig* c) {
          c->model.delta_skinning.enabled = true;
@@ -663,7 +694,7 @@ SolverConfig EveryFieldChanged() {
       x.robust = {RobustLossType::kCauchy, w * 2};
     }
     l.bone_inside_margin = 0.031;
-    s.constant = {ParameterGroup::kSdf, ParameterGroup::kBonesT};
+    s.constant = {ParameterGroup::kSdf, ParameterGroup::kEmbedding};
     s.adam = {1.25e-3, 0.85, 0.995, 1e-10, 1e-4, LrSchedule::kConstant, 0.2, 0.05,
               2.5,     3.5,  4.5,   12,    5};
     s.lm = {9, 123.0, 4.5e7, LinearSolverType::kIterativeSchur, 2};
@@ -697,6 +728,19 @@ SolverConfig EveryFieldChanged() {
     s.pose_solve.search_rotations = 24;
     s.pose_solve.search_keep = 2;
     s.pose_solve.bones = true;
+    s.bone_registration.at = {0.3, 0.6};
+    s.bone_registration.resolution = 64 + i;
+    s.bone_registration.vertices = 500 + i;
+    s.bone_registration.match_pixels = 300 + i;
+    s.bone_registration.match_weight = 5 + i;
+    s.bone_registration.huber_px = 3 + i;
+    s.bone_registration.joint_weight = 2 + i;
+    s.bone_registration.joint_min_weight = 0.2 + 0.01 * i;
+    s.bone_registration.joint_points = 20 + i;
+    s.bone_registration.smooth_weight = 0.03 + 0.01 * i;
+    s.bone_registration.rest_weight = 0.02 + 0.01 * i;
+    s.bone_registration.visible_tolerance = 0.07 + 0.01 * i;
+    s.bone_registration.iterations = 7 + i;
     s.bone_steps_about_centres = i == 0;  // the two are exclusive
     s.bone_steps_articulated = i != 0;
     s.checkpoint_every = 50;
@@ -824,6 +868,20 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.pose_solve.search_rotations, t.pose_solve.search_rotations);
     EXPECT_EQ(s.pose_solve.search_keep, t.pose_solve.search_keep);
     EXPECT_EQ(s.pose_solve.bones, t.pose_solve.bones);
+    const BoneRegistrationConfig &r = s.bone_registration, &u = t.bone_registration;
+    EXPECT_EQ(r.at, u.at);
+    EXPECT_EQ(r.resolution, u.resolution);
+    EXPECT_EQ(r.vertices, u.vertices);
+    EXPECT_EQ(r.match_pixels, u.match_pixels);
+    EXPECT_EQ(r.match_weight, u.match_weight);
+    EXPECT_EQ(r.huber_px, u.huber_px);
+    EXPECT_EQ(r.joint_weight, u.joint_weight);
+    EXPECT_EQ(r.joint_min_weight, u.joint_min_weight);
+    EXPECT_EQ(r.joint_points, u.joint_points);
+    EXPECT_EQ(r.smooth_weight, u.smooth_weight);
+    EXPECT_EQ(r.rest_weight, u.rest_weight);
+    EXPECT_EQ(r.visible_tolerance, u.visible_tolerance);
+    EXPECT_EQ(r.iterations, u.iterations);
     EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
     EXPECT_EQ(s.bone_steps_articulated, t.bone_steps_articulated);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);

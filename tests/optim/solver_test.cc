@@ -584,6 +584,40 @@ TEST(Solver, ResumeWithPoseSolvesIsBitwiseIdentical) {
   }
 }
 
+// A bone registration right after a re-initialisation (batch 3 of 6) sets
+// every frame's bone transforms away from the identity, draws from the
+// run's RNG and drops the bone transforms' Adam moments: runs stopped at its
+// batch and after it resume to the uninterrupted result.
+TEST(Solver, BoneRegistrationAfterAReinitialisationMovesTheBonesAndResumes) {
+  SolverConfig config = TinyConfig(StepRule::kAdam, 6);
+  config.stages[0].schedule.bone_reinit_at = {0.5};
+  BoneRegistrationConfig& reg = config.stages[0].bone_registration;
+  reg.at = {0.5};
+  reg.resolution = 32;
+  reg.vertices = 300;
+  reg.match_pixels = 100;
+  reg.iterations = 3;
+  ExpectResumeEqualsStraight(config, {3, 4}, "banmo_resume_bone_registration_test");
+
+  const Dataset& data = TinyDataset();
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  std::vector<std::vector<double>> bones_t;  // frame (0, 2) after each batch
+  SolveOptions options = options_quiet();
+  options.on_batch = [&](const BatchProgress&, const Model& model) {
+    bones_t.push_back(model.frame(0, 2).bones_t);
+  };
+  solver.Run(options);
+  ASSERT_EQ(bones_t.size(), 6u);
+  // After batch 3 (re-initialised to the identity, registered, one step):
+  // the registration turned some bone by more than one Adam step could.
+  double largest = 0.0;
+  for (size_t b = 0; b < bones_t[3].size() / kPoseSize; ++b) {
+    const double w = std::min(1.0, std::abs(bones_t[3][kPoseSize * b]));
+    largest = std::max(largest, 2.0 * std::acos(w));
+  }
+  EXPECT_GT(largest, 0.02) << "rad";
+}
+
 SolverConfig AutoSizeConfig(int iterations) {
   SolverConfig config = TinyConfig(StepRule::kAdam, iterations);
   config.model.auto_size.enabled = true;

@@ -194,6 +194,27 @@ struct PoseSolveConfig {
   bool bones = false;
 };
 
+// Bone motion registration on feature matches (optim/bone_registration.h;
+// docs/solver.md, "Bone registration"): at the given fractions of the stage,
+// each frame's bone transforms J_b^t fitted by Levenberg-Marquardt to
+// matches between its object pixels' features and a mean-feature embedding
+// of the current canonical surface, frame after frame along each video.
+struct BoneRegistrationConfig {
+  std::vector<double> at;           // fractions of the stage (increasing, in [0, 1]; empty = never)
+  int resolution = 128;             // marching-cubes grid of the canonical surface
+  int vertices = 3000;              // surface vertices fitted (a random subset)
+  int match_pixels = 1000;          // object pixels matched per frame
+  double match_weight = 10.0;       // the matches' weight (their mean squared px)
+  double huber_px = 2.0;            // Huber scale of a match residual (px)
+  double joint_weight = 1.0;        // bones sharing skinning weight move their shared points alike
+  double joint_min_weight = 0.15;   // a point joins bones b, c when both weights exceed this
+  int joint_points = 40;            // shared points per bone pair at most
+  double smooth_weight = 0.01;      // each bone's pull to the previous frame's fit
+  double rest_weight = 0.01;        // each bone's pull to the rest pose (the identity)
+  double visible_tolerance = 0.05;  // z-buffer tolerance (model units)
+  int iterations = 20;              // LM iterations per frame
+};
+
 // Parameter groups held constant (ceres SetParameterBlockConstant):
 // model/parameter_group.h, docs/config.md.
 struct StageConfig {
@@ -211,6 +232,7 @@ struct StageConfig {
   SamplingConfig sampling;
   ScheduleConfig schedule;
   PoseSolveConfig pose_solve;
+  BoneRegistrationConfig bone_registration;
   // Steps of the bone transforms J_b^t turn each about its bone's centre
   // (MakeStackedPivotPoseManifold, geometry/pose_manifold.h) instead of
   // about the canonical origin; Adam and the pose solves alike.

@@ -1,0 +1,493 @@
+#include "banmo/optim/bone_registration.h"
+
+#include <ceres/autodiff_cost_function.h>
+#include <ceres/dynamic_autodiff_cost_function.h>
+#include <ceres/loss_function.h>
+#include <ceres/problem.h>
+#include <ceres/rotation.h>
+#include <ceres/solver.h>
+#include <glog/logging.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+#include <random>
+
+#include "banmo/deform/bones.h"
+#include "banmo/extract/extract.h"
+#include "banmo/geometry/camera.h"
+#include "banmo/geometry/pose_manifold.h"
+#include "banmo/util/error.h"
+#include "banmo/util/median.h"
+#include "banmo/util/parallel.h"
+#include "banmo/util/timer.h"
+
+namespace banmo {
+namespace {
+
+struct SkinnedPixelResidual {
+  SkinnedPixelResidual(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k,
+                       const Eigen::Vector2d& uv)
+      : point(p), camera_from_root(g), intrinsics(k), target(uv) {}
+  template <typename T>
+  bool operator()(T const* const* parameters, T* residuals) const {
+    const T x[3] = {T(point.x[0]), T(point.x[1]), T(point.x[2])};
+    T blended[3] = {T(0), T(0), T(0)};
+    for (size_t k = 0; k < point.bones.size(); ++k) {
+      T z[3];
+      PoseTransformPoint(parameters[k], x, z);
+      for (int i = 0; i < 3; ++i) blended[i] += T(point.weights[k]) * z[i];
+    }
+    T g[kPoseSize], K[4], cam[3], uv[2];
+    for (int i = 0; i < kPoseSize; ++i) g[i] = T(camera_from_root[i]);
+    for (int i = 0; i < 4; ++i) K[i] = T(intrinsics[i]);
+    PoseTransformPoint(g, blended, cam);
+    ProjectPoint(K, cam, uv);
+    residuals[0] = uv[0] - T(target[0]);
+    residuals[1] = uv[1] - T(target[1]);
+    return true;
+  }
+  const SkinnedPoint point;
+  const Pose camera_from_root;
+  const Eigen::Vector4d intrinsics;
+  const Eigen::Vector2d target;
+};
+
+struct BonePairResidual {
+  template <typename T>
+  bool operator()(const T* ja, const T* jb, T* residuals) const {
+    const T x[3] = {T(m[0]), T(m[1]), T(m[2])};
+    T ya[3], yb[3];
+    PoseTransformPoint(ja, x, ya);
+    PoseTransformPoint(jb, x, yb);
+    for (int i = 0; i < 3; ++i) residuals[i] = T(scale) * (ya[i] - yb[i]);
+    return true;
+  }
+  Eigen::Vector3d m;
+  double scale;
+};
+
+// A bone transform's travel of its rest centre c: R c + t - c.
+template <typename T>
+void CentreTravel(const T* pose, const Eigen::Vector3d& c, T* tau) {
+  const T x[3] = {T(c[0]), T(c[1]), T(c[2])};
+  PoseTransformPoint(pose, x, tau);
+  for (int i = 0; i < 3; ++i) tau[i] -= T(c[i]);
+}
+
+struct BonePriorResidual {
+  BonePriorResidual(const Pose& r, const Eigen::Vector3d& c, double s)
+      : reference(r), centre(c), scale(s) {
+    CentreTravel(reference.data(), centre, reference_travel.data());
+  }
+  template <typename T>
+  bool operator()(const T* pose, T* residuals) const {
+    // R R0^T as quaternions: q conj(q0), both normalised.
+    using std::sqrt;
+    const T norm =
+        sqrt(pose[0] * pose[0] + pose[1] * pose[1] + pose[2] * pose[2] + pose[3] * pose[3]);
+    const T q[4] = {pose[0] / norm, pose[1] / norm, pose[2] / norm, pose[3] / norm};
+    const double n0 = reference.head<4>().norm();
+    const T q0_conj[4] = {T(reference[0] / n0), T(-reference[1] / n0), T(-reference[2] / n0),
+                          T(-reference[3] / n0)};
+    T d[4], angle_axis[3], tau[3];
+    ceres::QuaternionProduct(q, q0_conj, d);
+    if (d[0] < T(0)) {
+      for (T& e : d) e = -e;  // the short way round
+    }
+    ceres::QuaternionToAngleAxis(d, angle_axis);
+    CentreTravel(pose, centre, tau);
+    for (int i = 0; i < 3; ++i) {
+      residuals[i] = T(scale) * angle_axis[i];
+      residuals[3 + i] = T(scale) * (tau[i] - T(reference_travel[i]));
+    }
+    return true;
+  }
+  const Pose reference;
+  const Eigen::Vector3d centre;
+  const double scale;
+  Eigen::Vector3d reference_travel;
+};
+
+// Pixel (i, j) of a projected point (u in [i, i + 1)), or false outside.
+bool PixelOf(const Eigen::Vector4d& k, const Eigen::Vector3d& p, int width, int height,
+             Eigen::Vector2i* pixel) {
+  if (!(p.z() > kMinProjectionDepth)) return false;
+  const double u = k[0] * p.x() / p.z() + k[2];
+  const double v = k[1] * p.y() / p.z() + k[3];
+  if (!(u >= 0 && v >= 0 && u < width && v < height)) return false;
+  *pixel = Eigen::Vector2i(static_cast<int>(u), static_cast<int>(v));
+  return true;
+}
+
+// The frame's surface vertices in its camera coordinates (the model's
+// forward warp and root pose).
+Eigen::Matrix3Xd PosedSurface(const Model& model, const Eigen::Matrix3Xd& surface, int video,
+                              int frame) {
+  TriangleMesh mesh;
+  mesh.vertices = surface;
+  return ArticulateMesh(model, mesh, video, frame).vertices;
+}
+
+bool Usable(const Frame& f) { return !f.skip && !f.features.empty(); }
+
+}  // namespace
+
+SkinnedPoint MakeSkinnedPoint(const Eigen::Vector3d& x, const Eigen::VectorXd& w) {
+  SkinnedPoint p;
+  p.x = x;
+  double sum = 0.0;
+  for (int b = 0; b < w.size(); ++b) {
+    if (w[b] >= kRegistrationWeightCutoff) {
+      p.bones.push_back(b);
+      p.weights.push_back(w[b]);
+      sum += w[b];
+    }
+  }
+  CHECK(!p.bones.empty()) << "skinning weights sum to " << w.sum() << ", expected 1";
+  for (double& v : p.weights) v /= sum;
+  return p;
+}
+
+std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunction(const SkinnedPoint& point,
+                                                                  const Pose& camera_from_root,
+                                                                  const Eigen::Vector4d& intrinsics,
+                                                                  const Eigen::Vector2d& target) {
+  CHECK(!point.bones.empty());
+  CHECK_EQ(point.bones.size(), point.weights.size());
+  auto cost = std::make_unique<ceres::DynamicAutoDiffCostFunction<SkinnedPixelResidual, 14>>(
+      new SkinnedPixelResidual(point, camera_from_root, intrinsics, target));
+  for (size_t k = 0; k < point.bones.size(); ++k) cost->AddParameterBlock(kPoseSize);
+  cost->SetNumResiduals(2);
+  return cost;
+}
+
+std::unique_ptr<ceres::CostFunction> MakeBonePairCostFunction(const Eigen::Vector3d& m,
+                                                              double scale) {
+  return std::make_unique<ceres::AutoDiffCostFunction<BonePairResidual, 3, kPoseSize, kPoseSize>>(
+      new BonePairResidual{m, scale});
+}
+
+std::unique_ptr<ceres::CostFunction> MakeBonePriorCostFunction(const Pose& reference,
+                                                               const Eigen::Vector3d& centre,
+                                                               double scale) {
+  return std::make_unique<ceres::AutoDiffCostFunction<BonePriorResidual, 6, kPoseSize>>(
+      new BonePriorResidual(reference, centre, scale));
+}
+
+RegistrationProxy MakeRegistrationProxy(const Eigen::Matrix3Xd& surface,
+                                        const Eigen::MatrixXd& weights, int count,
+                                        double joint_min_weight, int joint_points,
+                                        std::uint32_t seed) {
+  CHECK_EQ(weights.cols(), surface.cols());
+  CHECK_GT(count, 0);
+  RegistrationProxy proxy;
+  proxy.surface = surface;
+  const int n = static_cast<int>(surface.cols());
+  std::vector<int> all(n);
+  std::iota(all.begin(), all.end(), 0);
+  std::mt19937 rng(seed);
+  std::shuffle(all.begin(), all.end(), rng);
+  all.resize(std::min(n, count));
+  std::sort(all.begin(), all.end());
+  proxy.subset = all;
+  for (int i : proxy.subset)
+    proxy.points.push_back(MakeSkinnedPoint(surface.col(i), weights.col(i)));
+  const int B = static_cast<int>(weights.rows());
+  for (int a = 0; a < B; ++a) {
+    for (int b = a + 1; b < B; ++b) {
+      RegistrationProxy::Pair pair{a, b, {}};
+      for (int i : proxy.subset) {
+        if (static_cast<int>(pair.points.size()) >= joint_points) break;
+        if (weights(a, i) > joint_min_weight && weights(b, i) > joint_min_weight) {
+          pair.points.push_back(surface.col(i));
+        }
+      }
+      if (!pair.points.empty()) proxy.pairs.push_back(std::move(pair));
+    }
+  }
+  return proxy;
+}
+
+std::vector<int> VisiblePoints(const Eigen::Matrix3Xd& points_in_camera,
+                               const Eigen::Vector4d& intrinsics, int width, int height,
+                               double tolerance, std::vector<Eigen::Vector2i>* pixels) {
+  const int n = static_cast<int>(points_in_camera.cols());
+  std::vector<double> depth(static_cast<size_t>(width) * height,
+                            std::numeric_limits<double>::infinity());
+  std::vector<Eigen::Vector2i> at(n);
+  std::vector<char> inside(n, 0);
+  for (int i = 0; i < n; ++i) {
+    inside[i] = PixelOf(intrinsics, points_in_camera.col(i), width, height, &at[i]);
+    if (!inside[i]) continue;
+    double& d = depth[static_cast<size_t>(at[i].y()) * width + at[i].x()];
+    d = std::min(d, points_in_camera(2, i));
+  }
+  std::vector<int> visible;
+  if (pixels != nullptr) pixels->clear();
+  for (int i = 0; i < n; ++i) {
+    if (!inside[i]) continue;
+    if (points_in_camera(2, i) >
+        depth[static_cast<size_t>(at[i].y()) * width + at[i].x()] + tolerance) {
+      continue;
+    }
+    visible.push_back(i);
+    if (pixels != nullptr) pixels->push_back(at[i]);
+  }
+  return visible;
+}
+
+Eigen::MatrixXd MeanFeatureEmbedding(const Model& model, const Dataset& dataset,
+                                     const RegistrationProxy& proxy, double tolerance) {
+  const int n = static_cast<int>(proxy.subset.size());
+  // Position of each surface vertex in the subset (-1: not fitted).
+  std::vector<int> position(proxy.surface.cols(), -1);
+  for (int k = 0; k < n; ++k) position[proxy.subset[k]] = k;
+  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(kFeatureDim, n);
+  for (int v = 0; v < model.num_videos(); ++v) {
+    const Video& video = dataset.videos[v];
+    for (int t = 0; t < static_cast<int>(video.frames.size()); ++t) {
+      const Frame& f = video.frames[t];
+      if (!Usable(f)) continue;
+      std::vector<Eigen::Vector2i> pixels;
+      const std::vector<int> visible =
+          VisiblePoints(PosedSurface(model, proxy.surface, v, t), model.video(v).intrinsics,
+                        f.mask.cols, f.mask.rows, tolerance, &pixels);
+      for (size_t j = 0; j < visible.size(); ++j) {
+        const int k = position[visible[j]];
+        const Eigen::Vector2i& p = pixels[j];
+        if (k < 0 || f.mask.at<unsigned char>(p.y(), p.x()) != kMaskObject) continue;
+        const cv::float16_t* feat = f.features.ptr<cv::float16_t>(p.y()) + kFeatureDim * p.x();
+        for (int c = 0; c < kFeatureDim; ++c) sum(c, k) += static_cast<float>(feat[c]);
+      }
+    }
+  }
+  for (int k = 0; k < n; ++k) {
+    const double norm = sum.col(k).norm();
+    if (norm > 1e-12) sum.col(k) /= norm;
+  }
+  return sum;
+}
+
+FrameMatches MatchFrameFeatures(const Eigen::MatrixXd& embedding, const Frame& frame, int count,
+                                std::uint32_t seed) {
+  CHECK_EQ(embedding.rows(), kFeatureDim);
+  FrameMatches matches;
+  if (frame.features.empty()) return matches;
+  std::vector<Eigen::Vector2i> object;
+  for (int y = 0; y < frame.mask.rows; ++y) {
+    const unsigned char* row = frame.mask.ptr<unsigned char>(y);
+    for (int x = 0; x < frame.mask.cols; ++x) {
+      if (row[x] == kMaskObject) object.emplace_back(x, y);
+    }
+  }
+  if (static_cast<int>(object.size()) > count) {
+    std::mt19937 rng(seed);
+    std::shuffle(object.begin(), object.end(), rng);
+    object.resize(count);
+  }
+  Eigen::Matrix<double, kFeatureDim, 1> f;
+  for (const Eigen::Vector2i& p : object) {
+    const cv::float16_t* feat = frame.features.ptr<cv::float16_t>(p.y()) + kFeatureDim * p.x();
+    for (int c = 0; c < kFeatureDim; ++c) f[c] = static_cast<float>(feat[c]);
+    if (!(f.norm() > 1e-12)) continue;  // no feature here
+    int best = -1;
+    (embedding.transpose() * f).maxCoeff(&best);
+    matches.vertex.push_back(best);
+    matches.pixel.emplace_back(p.x() + 0.5, p.y() + 0.5);
+  }
+  return matches;
+}
+
+FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const FrameMatches& matches,
+                                     int num_bones, const double* bones,
+                                     const Pose& camera_from_root,
+                                     const Eigen::Vector4d& intrinsics, const double* previous,
+                                     const BoneRegistrationConfig& config, double* bones_t) {
+  CHECK_GT(num_bones, 0);
+  const int B = num_bones;
+  ceres::Problem problem;
+  auto block = [&](int b) { return bones_t + kPoseSize * b; };
+  for (int b = 0; b < B; ++b) {
+    problem.AddParameterBlock(
+        block(b), kPoseSize,
+        MakeStackedPivotPoseManifold(1, bones + kBoneSize * b, kBoneSize, kBoneCenter).release());
+  }
+  // Pixels per model unit at the root's depth: the joint and prior
+  // residuals in the matches' units.
+  const double scale = intrinsics[0] / std::max(camera_from_root[kPoseT + 2], kMinProjectionDepth);
+  const int n = static_cast<int>(matches.vertex.size());
+  std::vector<ceres::ResidualBlockId> match_blocks;
+  if (n > 0) {
+    auto* loss = new ceres::ScaledLoss(new ceres::HuberLoss(config.huber_px),
+                                       config.match_weight / n, ceres::TAKE_OWNERSHIP);
+    for (int i = 0; i < n; ++i) {
+      const SkinnedPoint& p = proxy.points[matches.vertex[i]];
+      std::vector<double*> blocks;
+      for (int b : p.bones) blocks.push_back(block(b));
+      match_blocks.push_back(problem.AddResidualBlock(
+          MakeSkinnedPixelCostFunction(p, camera_from_root, intrinsics, matches.pixel[i]).release(),
+          loss, blocks));
+    }
+  }
+  int shared = 0;
+  for (const RegistrationProxy::Pair& pair : proxy.pairs) shared += pair.points.size();
+  if (config.joint_weight > 0 && shared > 0) {
+    const double s = std::sqrt(config.joint_weight / shared) * scale;
+    for (const RegistrationProxy::Pair& pair : proxy.pairs) {
+      for (const Eigen::Vector3d& m : pair.points) {
+        problem.AddResidualBlock(MakeBonePairCostFunction(m, s).release(), nullptr, block(pair.a),
+                                 block(pair.b));
+      }
+    }
+  }
+  for (int b = 0; b < B; ++b) {
+    const Eigen::Vector3d c(bones + kBoneSize * b + kBoneCenter);
+    const Pose reference = previous != nullptr
+                               ? Pose(Eigen::Map<const Pose>(previous + kPoseSize * b))
+                               : PoseIdentity();
+    if (config.smooth_weight > 0) {
+      problem.AddResidualBlock(
+          MakeBonePriorCostFunction(reference, c, std::sqrt(config.smooth_weight / B) * scale)
+              .release(),
+          nullptr, block(b));
+    }
+    if (config.rest_weight > 0) {
+      problem.AddResidualBlock(
+          MakeBonePriorCostFunction(PoseIdentity(), c, std::sqrt(config.rest_weight / B) * scale)
+              .release(),
+          nullptr, block(b));
+    }
+  }
+  auto median_match_px = [&] {
+    std::vector<double> norms;
+    for (ceres::ResidualBlockId id : match_blocks) {
+      double r[2];
+      problem.EvaluateResidualBlock(id, false, nullptr, r, nullptr);
+      norms.push_back(std::hypot(r[0], r[1]));
+    }
+    return norms.empty() ? 0.0 : Median(norms);
+  };
+  FrameRegistration out;
+  out.median_match_px_before = median_match_px();
+  ceres::Solver::Options options;
+  options.max_num_iterations = config.iterations;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  out.initial_cost = summary.initial_cost;
+  out.final_cost = summary.final_cost;
+  out.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  out.median_match_px_after = median_match_px();
+  return out;
+}
+
+std::string BoneRegistrationReport::Describe() const {
+  if (!registered) return "bone registration skipped: " + reason;
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "bone registration: %d frames on %d surface vertices (%d bone pairs) in %.1f s; "
+                "median match %.2f -> %.2f px; bones turned %.1f deg on average",
+                frames, surface_vertices, pairs, seconds, median_match_px_before,
+                median_match_px_after, mean_turn_deg);
+  return text;
+}
+
+BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
+                                          const Eigen::AlignedBox3d& bounds,
+                                          const BoneRegistrationConfig& config,
+                                          std::uint32_t seed) {
+  Timer timer;
+  BoneRegistrationReport report;
+  const int B = model->num_bones();
+  if (B == 0) {
+    report.reason = "the model has no bones";
+    return report;
+  }
+  bool features = false;
+  for (const Video& video : dataset.videos) {
+    for (const Frame& f : video.frames) features = features || Usable(f);
+  }
+  if (!features) {
+    report.reason = "no frame has pixel features";
+    return report;
+  }
+  ExtractOptions options;
+  options.grid.resolution = config.resolution;
+  options.grid.bounds_min = bounds.min();
+  options.grid.bounds_max = bounds.max();
+  TriangleMesh mesh;
+  try {
+    mesh = ExtractCanonicalMesh(*model, options);
+  } catch (const InputError& e) {
+    report.reason = std::string("no surface (") + e.what() + ")";
+    return report;
+  }
+  const RegistrationProxy proxy =
+      MakeRegistrationProxy(mesh.vertices, SkinningWeightsAt(*model, mesh.vertices),
+                            config.vertices, config.joint_min_weight, config.joint_points, seed);
+  report.surface_vertices = static_cast<int>(mesh.vertices.cols());
+  report.pairs = static_cast<int>(proxy.pairs.size());
+  const Eigen::MatrixXd embedding =
+      MeanFeatureEmbedding(*model, dataset, proxy, config.visible_tolerance);
+
+  // Frames of a video in order, each from the previous one's fit; videos in
+  // parallel (each writes only its own frames' bones_t and results).
+  const int V = model->num_videos();
+  std::vector<int> first(V + 1, 0);
+  for (int v = 0; v < V; ++v) first[v + 1] = first[v] + dataset.videos[v].frames.size();
+  std::vector<FrameRegistration> results(first[V]);
+  std::vector<char> done(first[V], 0);
+  ParallelFor(V, [&](int begin, int end) {
+    for (int v = begin; v < end; ++v) {
+      const double* previous = nullptr;
+      for (int t = 0; t < static_cast<int>(dataset.videos[v].frames.size()); ++t) {
+        const Frame& f = dataset.videos[v].frames[t];
+        double* bones_t = model->frame(v, t).bones_t.data();
+        if (!Usable(f)) continue;
+        const int k = first[v] + t;
+        const FrameMatches matches = MatchFrameFeatures(
+            embedding, f, config.match_pixels, seed + 7919u * static_cast<std::uint32_t>(k + 1));
+        if (previous != nullptr) std::copy(previous, previous + kPoseSize * B, bones_t);
+        results[k] = RegisterFrameBones(proxy, matches, B, model->bones(), model->RootPose(v, t),
+                                        model->video(v).intrinsics, previous, config, bones_t);
+        done[k] = 1;
+        previous = bones_t;
+      }
+    }
+  });
+  std::vector<double> before, after;
+  double turn = 0.0;
+  for (int v = 0; v < V; ++v) {
+    for (int t = 0; t < static_cast<int>(dataset.videos[v].frames.size()); ++t) {
+      const int k = first[v] + t;
+      if (!done[k]) continue;
+      ++report.frames;
+      before.push_back(results[k].median_match_px_before);
+      after.push_back(results[k].median_match_px_after);
+      const double* bones_t = model->frame(v, t).bones_t.data();
+      for (int b = 0; b < B; ++b) {
+        const double* q = bones_t + kPoseSize * b;
+        const double w =
+            std::min(1.0, std::abs(q[0]) / Eigen::Map<const Eigen::Vector4d>(q).norm());
+        turn += 2.0 * std::acos(w) * 180.0 / M_PI / B;
+      }
+    }
+  }
+  if (report.frames == 0) {
+    report.reason = "no usable frame";
+    return report;
+  }
+  report.registered = true;
+  report.median_match_px_before = Median(before);
+  report.median_match_px_after = Median(after);
+  report.mean_turn_deg = turn / report.frames;
+  report.seconds = timer.Seconds();
+  return report;
+}
+
+}  // namespace banmo

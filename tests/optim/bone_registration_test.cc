@@ -1,0 +1,309 @@
+// Bone motion registration on feature matches (optim/bone_registration.h):
+// the residuals against direct computations, the z-buffer, the
+// mean-feature embedding and matches on a rendered point cloud, and the
+// per-frame fit recovering a known articulation from exact matches.
+#include "banmo/optim/bone_registration.h"
+
+#include <ceres/cost_function.h>
+#include <ceres/rotation.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "banmo/deform/bones.h"
+#include "banmo/geometry/camera.h"
+
+namespace banmo {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+std::vector<double> Evaluate(const ceres::CostFunction& cost,
+                             const std::vector<const double*>& blocks) {
+  std::vector<double> r(cost.num_residuals());
+  EXPECT_TRUE(cost.Evaluate(blocks.data(), r.data(), nullptr));
+  return r;
+}
+
+// A bone transform turning by angle-axis w about centre c, then moving c by
+// tau: J x = R (x - c) + c + tau.
+Pose TurnAbout(const Eigen::Vector3d& w, const Eigen::Vector3d& c, const Eigen::Vector3d& tau) {
+  const Eigen::Matrix3d R = w.norm() > 0
+                                ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix()
+                                : Eigen::Matrix3d::Identity();
+  return PoseFromAngleAxis(w, c + tau - R * c);
+}
+
+Eigen::Vector3d Apply(const Pose& p, const Eigen::Vector3d& x) {
+  Eigen::Vector3d y;
+  PoseTransformPoint(p.data(), x.data(), y.data());
+  return y;
+}
+
+TEST(BoneRegistration, SkinnedPointKeepsBonesAboveTheCutoffRenormalised) {
+  Eigen::VectorXd w(4);
+  w << 0.6, 0.5 * kRegistrationWeightCutoff, 0.4 - kRegistrationWeightCutoff,
+      0.5 * kRegistrationWeightCutoff;
+  const SkinnedPoint p = MakeSkinnedPoint(Eigen::Vector3d(1, 2, 3), w);
+  ASSERT_EQ(p.bones, (std::vector<int>{0, 2}));
+  EXPECT_NEAR(p.weights[0] + p.weights[1], 1.0, 1e-15);
+  EXPECT_NEAR(p.weights[0] / p.weights[1], w[0] / w[2], 1e-12);
+}
+
+// The pixel residual against the blend, root pose and projection computed
+// directly; a change of one bone block moves it as predicted.
+TEST(BoneRegistration, SkinnedPixelResidualIsTheProjectedBlendMinusTheTarget) {
+  SkinnedPoint p;
+  p.x = Eigen::Vector3d(0.2, -0.1, 0.3);
+  p.bones = {1, 3};
+  p.weights = {0.7, 0.3};
+  const Pose j1 = TurnAbout(Eigen::Vector3d(0.1, 0.4, -0.2), Eigen::Vector3d(0, 0.1, 0),
+                            Eigen::Vector3d(0.05, 0, 0.02));
+  const Pose j3 = TurnAbout(Eigen::Vector3d(-0.3, 0.1, 0.2), Eigen::Vector3d(0.3, 0, 0.1),
+                            Eigen::Vector3d(0, -0.04, 0));
+  const Pose g = PoseFromAngleAxis(Eigen::Vector3d(0.2, -0.5, 0.1), Eigen::Vector3d(0.1, 0, 3));
+  const Eigen::Vector4d k(120, 110, 64, 60);
+  const Eigen::Vector2d target(70.5, 55.5);
+  const auto cost = MakeSkinnedPixelCostFunction(p, g, k, target);
+  ASSERT_EQ(cost->num_residuals(), 2);
+  ASSERT_EQ(cost->parameter_block_sizes().size(), 2u);
+  const Eigen::Vector3d blend = 0.7 * Apply(j1, p.x) + 0.3 * Apply(j3, p.x);
+  const Eigen::Vector3d cam = Apply(g, blend);
+  const Eigen::Vector2d uv(k[0] * cam.x() / cam.z() + k[2], k[1] * cam.y() / cam.z() + k[3]);
+  const std::vector<double> r = Evaluate(*cost, {j1.data(), j3.data()});
+  EXPECT_NEAR(r[0], uv.x() - target.x(), 1e-10);
+  EXPECT_NEAR(r[1], uv.y() - target.y(), 1e-10);
+  // Golden values (the same formula in numpy and scipy).
+  EXPECT_NEAR(r[0], 2.6855346, 1e-6);
+  EXPECT_NEAR(r[1], -1.5312148, 1e-6);
+}
+
+// A turn about the rest centre is all rotation; a travel all translation;
+// the reference gives zero.
+TEST(BoneRegistration, BonePriorSeparatesTurnAboutTheCentreFromTravel) {
+  const Eigen::Vector3d c(0.3, -0.2, 0.1);
+  const Pose reference =
+      TurnAbout(Eigen::Vector3d(0.2, 0.1, 0), c, Eigen::Vector3d(0.01, 0.02, 0.03));
+  const auto cost = MakeBonePriorCostFunction(reference, c, 50.0);
+  ASSERT_EQ(cost->num_residuals(), 6);
+  for (double r : Evaluate(*cost, {reference.data()})) EXPECT_NEAR(r, 0.0, 1e-12);
+
+  const auto from_identity = MakeBonePriorCostFunction(PoseIdentity(), c, 50.0);
+  const Eigen::Vector3d w(0.3, -0.2, 0.5);
+  const Pose turned = TurnAbout(w, c, Eigen::Vector3d::Zero());
+  const std::vector<double> r = Evaluate(*from_identity, {turned.data()});
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(r[i], 50.0 * w[i], 1e-9);
+    EXPECT_NEAR(r[3 + i], 0.0, 1e-12);
+  }
+  const Eigen::Vector3d tau(0.1, 0.0, -0.2);
+  const Pose moved = TurnAbout(Eigen::Vector3d::Zero(), c, tau);
+  const std::vector<double> s = Evaluate(*from_identity, {moved.data()});
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(s[i], 0.0, 1e-12);
+    EXPECT_NEAR(s[3 + i], 50.0 * tau[i], 1e-12);
+  }
+  // The short way round: q and -q are the same turn.
+  Pose flipped = turned;
+  flipped.head<4>() *= -1.0;
+  const std::vector<double> f = Evaluate(*from_identity, {flipped.data()});
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(f[i], r[i], 1e-9);
+}
+
+TEST(BoneRegistration, BonePairIsTheScaledDifferenceOfTheTwoImages) {
+  const Eigen::Vector3d m(0.1, 0.2, -0.3);
+  const Pose a =
+      TurnAbout(Eigen::Vector3d(0.1, 0, 0), Eigen::Vector3d::Zero(), Eigen::Vector3d(0.02, 0, 0));
+  const Pose b = TurnAbout(Eigen::Vector3d(0, 0.2, 0), Eigen::Vector3d(0.5, 0, 0),
+                           Eigen::Vector3d(0, 0.03, 0));
+  const auto cost = MakeBonePairCostFunction(m, 7.0);
+  const std::vector<double> r = Evaluate(*cost, {a.data(), b.data()});
+  const Eigen::Vector3d d = 7.0 * (Apply(a, m) - Apply(b, m));
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(r[i], d[i], 1e-12);
+}
+
+TEST(BoneRegistration, VisiblePointsHideWhatIsBehindInTheSamePixel) {
+  const Eigen::Vector4d k(100, 100, 32, 32);
+  Eigen::Matrix3Xd p(3, 5);
+  p.col(0) << 0, 0, 2;         // pixel (32, 32)
+  p.col(1) << 0, 0, 2.5;       // same pixel, behind: hidden
+  p.col(2) << 0.001, 0, 2.03;  // same pixel, within the tolerance
+  p.col(3) << 1, 0, 2;         // u = 82: outside a 64-pixel image
+  p.col(4) << 0, 0, -1;        // behind the camera
+  std::vector<Eigen::Vector2i> pixels;
+  const std::vector<int> visible = VisiblePoints(p, k, 64, 64, 0.05, &pixels);
+  ASSERT_EQ(visible, (std::vector<int>{0, 2}));
+  EXPECT_EQ(pixels[0], Eigen::Vector2i(32, 32));
+  EXPECT_EQ(pixels[1], Eigen::Vector2i(32, 32));
+}
+
+// Two bones along a bar; bone 1 turned and moved at frame t. From exact
+// matches (each vertex's true pixel) the fit started at the identity
+// recovers the transforms: the pixels to 0.01 px, bone 1's turn to 0.1 deg.
+TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
+  const int B = 2;
+  std::vector<double> bones(kBoneSize * B);
+  InitializeBones({Eigen::Vector3d(-0.4, 0, 0), Eigen::Vector3d(0.4, 0, 0)}, 0.3, bones.data());
+  // A bar of points with the Gaussian bones' weights.
+  const int n = 400;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  Eigen::Matrix3Xd surface(3, n);
+  Eigen::MatrixXd weights(B, n);
+  for (int i = 0; i < n; ++i) {
+    surface.col(i) = Eigen::Vector3d(0.9 * uni(rng), 0.15 * uni(rng), 0.15 * uni(rng));
+    double logits[B];
+    for (int b = 0; b < B; ++b) logits[b] = BoneLogit(bones.data() + kBoneSize * b, &surface(0, i));
+    SkinningWeights(B, logits, weights.col(i).data());
+  }
+  const RegistrationProxy proxy = MakeRegistrationProxy(surface, weights, 300, 0.15, 40, 5);
+  ASSERT_EQ(proxy.points.size(), 300u);
+  ASSERT_EQ(proxy.pairs.size(), 1u);
+
+  std::vector<double> truth(kPoseSize * B);
+  Eigen::Map<Pose>(truth.data()) =
+      TurnAbout(Eigen::Vector3d(0, 0.05, 0), Eigen::Vector3d(-0.4, 0, 0), Eigen::Vector3d::Zero());
+  const Eigen::Vector3d w1(0, 0.1, 0.6);  // 35 deg, mostly about the view axis
+  Eigen::Map<Pose>(truth.data() + kPoseSize) =
+      TurnAbout(w1, Eigen::Vector3d(0.4, 0, 0), Eigen::Vector3d(0.0, 0.02, 0.0));
+  const Pose g = PoseFromAngleAxis(Eigen::Vector3d(0.3, 0, 0), Eigen::Vector3d(0, 0, 3));
+  const Eigen::Vector4d k(300, 300, 128, 128);
+  FrameMatches matches;
+  for (size_t i = 0; i < proxy.points.size(); ++i) {
+    const SkinnedPoint& p = proxy.points[i];
+    Eigen::Vector3d y = Eigen::Vector3d::Zero();
+    for (size_t j = 0; j < p.bones.size(); ++j) {
+      y += p.weights[j] * Apply(Eigen::Map<const Pose>(truth.data() + kPoseSize * p.bones[j]), p.x);
+    }
+    const Eigen::Vector3d c = Apply(g, y);
+    matches.vertex.push_back(static_cast<int>(i));
+    matches.pixel.emplace_back(k[0] * c.x() / c.z() + k[2], k[1] * c.y() / c.z() + k[3]);
+  }
+  BoneRegistrationConfig config;
+  config.smooth_weight = 0.0;  // exact matches need no prior; the joint
+  config.rest_weight = 0.0;    // term is not exact for a moved joint
+  config.joint_weight = 0.0;
+  config.iterations = 50;
+  std::vector<double> bones_t(kPoseSize * B);
+  for (int b = 0; b < B; ++b) PoseSetIdentity(bones_t.data() + kPoseSize * b);
+  const FrameRegistration fit =
+      RegisterFrameBones(proxy, matches, B, bones.data(), g, k, nullptr, config, bones_t.data());
+  EXPECT_GT(fit.median_match_px_before, 5.0);
+  EXPECT_LT(fit.median_match_px_after, 0.01);
+  EXPECT_LT(fit.final_cost, 1e-6 * fit.initial_cost);
+  // Bone 1's rotation (well seen: its points move by tens of pixels).
+  const Eigen::Quaterniond q(bones_t[kPoseSize], bones_t[kPoseSize + 1], bones_t[kPoseSize + 2],
+                             bones_t[kPoseSize + 3]);
+  const Eigen::Quaterniond q_true(truth[kPoseSize], truth[kPoseSize + 1], truth[kPoseSize + 2],
+                                  truth[kPoseSize + 3]);
+  EXPECT_LT(q.angularDistance(q_true), 0.1 * kDeg);
+
+  // With priors and no matches the fit stays at the rest pose.
+  std::vector<double> rest(kPoseSize * B);
+  for (int b = 0; b < B; ++b) PoseSetIdentity(rest.data() + kPoseSize * b);
+  const FrameRegistration none = RegisterFrameBones(proxy, FrameMatches{}, B, bones.data(), g, k,
+                                                    nullptr, BoneRegistrationConfig{}, rest.data());
+  EXPECT_EQ(none.final_cost, 0.0);
+  for (int b = 0; b < B; ++b) {
+    EXPECT_NEAR(rest[kPoseSize * b], 1.0, 1e-12);
+    for (int i = 1; i < kPoseSize; ++i) EXPECT_NEAR(rest[kPoseSize * b + i], 0.0, 1e-12);
+  }
+}
+
+// A rigid point cloud (a plane facing the camera, every point with its own
+// feature) "rendered" into two frames: the mean-feature embedding is each
+// point's own feature, and the matches find each pixel's point.
+TEST(BoneRegistration, MeanFeaturesAndMatchesOnARenderedPlane) {
+  const int size = 32;
+  PinholeCamera camera;
+  camera.width = camera.height = size;
+  camera.intrinsics = Eigen::Vector4d(40, 40, size / 2.0, size / 2.0);
+  ModelOptions options;
+  options.num_bones = 2;
+  options.field.sdf_width = 8;
+  options.field.sdf_layers = 1;
+  options.field.color_width = 8;
+  options.field.color_layers = 1;
+  options.field.embedding_width = 8;
+  options.field.embedding_layers = 1;
+  Model model(options, {2}, {camera});
+  for (int t = 0; t < 2; ++t) {
+    model.frame(0, t).root_init =
+        PoseFromAngleAxis(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.02 * t, 0, 2));
+  }
+  // One point at the centre of every pixel of an 8 x 8 patch at depth 2,
+  // seen in frame 0; frame 1 is shifted by 0.02 units = 0.4 px (same pixels).
+  const int side = 8;
+  Eigen::Matrix3Xd surface(3, side * side);
+  auto feature = [](int i) {
+    Eigen::Matrix<double, kFeatureDim, 1> f;
+    for (int c = 0; c < kFeatureDim; ++c) f[c] = std::cos(0.37 * (i + 1) * (c + 1));
+    return f;
+  };
+  Dataset data;
+  data.videos.resize(1);
+  data.videos[0].camera = camera;
+  for (int t = 0; t < 2; ++t) {
+    Frame f;
+    f.index = t;
+    f.mask = cv::Mat(size, size, CV_8UC1, cv::Scalar(kMaskBackground));
+    f.features = cv::Mat(size, size, CV_16FC(kFeatureDim), cv::Scalar::all(0));
+    data.videos[0].frames.push_back(f);
+  }
+  for (int i = 0; i < side * side; ++i) {
+    const int px = 12 + i % side, py = 12 + i / side;
+    // Pixel centre (px + 0.3, py + 0.5) at depth 2: x = (u - cx) z / fx.
+    surface.col(i) =
+        Eigen::Vector3d((px + 0.3 - size / 2.0) * 2 / 40.0, (py + 0.5 - size / 2.0) * 2 / 40.0, 0);
+    for (Frame& f : data.videos[0].frames) {
+      f.mask.at<unsigned char>(py, px) = kMaskObject;
+      cv::float16_t* feat = f.features.ptr<cv::float16_t>(py) + kFeatureDim * px;
+      for (int c = 0; c < kFeatureDim; ++c)
+        feat[c] = cv::float16_t(static_cast<float>(feature(i)[c]));
+    }
+  }
+  Eigen::MatrixXd weights(2, surface.cols());
+  weights.row(0).setConstant(0.5);
+  weights.row(1).setConstant(0.5);
+  const RegistrationProxy proxy = MakeRegistrationProxy(surface, weights, 1000, 0.15, 40, 1);
+  ASSERT_EQ(proxy.points.size(), surface.cols());  // fewer vertices than asked: all of them
+  const Eigen::MatrixXd psi = MeanFeatureEmbedding(model, data, proxy, 0.05);
+  ASSERT_EQ(psi.rows(), kFeatureDim);
+  for (int i = 0; i < side * side; ++i) {
+    // Half-float features: 1e-3 relative.
+    EXPECT_GT(psi.col(i).dot(feature(i).normalized()), 1.0 - 1e-5) << i;
+  }
+  const FrameMatches m = MatchFrameFeatures(psi, data.videos[0].frames[1], 1000, 2);
+  ASSERT_EQ(m.vertex.size(), static_cast<size_t>(side * side));
+  for (size_t j = 0; j < m.vertex.size(); ++j) {
+    const int i = m.vertex[j];
+    EXPECT_EQ(m.pixel[j], Eigen::Vector2d(12 + i % side + 0.5, 12 + i / side + 0.5));
+  }
+  // At most `count` pixels.
+  EXPECT_EQ(MatchFrameFeatures(psi, data.videos[0].frames[0], 10, 2).vertex.size(), 10u);
+}
+
+TEST(BoneRegistration, SaysWhyNothingWasRegistered) {
+  PinholeCamera camera;
+  camera.width = camera.height = 8;
+  ModelOptions options;
+  options.num_bones = 0;
+  Model rigid(options, {1}, {camera});
+  Dataset data;
+  data.videos.resize(1);
+  data.videos[0].frames.resize(1);
+  const Eigen::AlignedBox3d box(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
+  const BoneRegistrationReport a = RegisterBoneMotion(&rigid, data, box, {}, 1);
+  EXPECT_FALSE(a.registered);
+  EXPECT_NE(a.Describe().find("no bones"), std::string::npos) << a.Describe();
+  options.num_bones = 2;
+  Model articulated(options, {1}, {camera});
+  const BoneRegistrationReport b = RegisterBoneMotion(&articulated, data, box, {}, 1);
+  EXPECT_FALSE(b.registered);
+  EXPECT_NE(b.Describe().find("no frame has pixel features"), std::string::npos) << b.Describe();
+}
+
+}  // namespace
+}  // namespace banmo
