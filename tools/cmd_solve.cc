@@ -33,7 +33,7 @@ int RunSolve(int argc, char** argv) {
       "banmo solve"};
   std::string data_dir, config_path, out_dir, retarget_dir;
   bool resume = false, overwrite = false, no_extract = false, no_eval = false, quiet = false;
-  int seed = -1, threads = -1, resolution = 128;
+  int seed = -1, threads = -1, resolution = 128, stop_after = -1;
   app.add_option("--data", data_dir, "Dataset folder (docs/dataset.md)")->required();
   app.add_option("--config", config_path, "Stage config, e.g. problems/default.yaml")->required();
   app.add_option("--out", out_dir, "Output folder (config.yaml, checkpoint/, meshes/, eval/)")
@@ -47,6 +47,10 @@ int RunSolve(int argc, char** argv) {
   app.add_option("--resolution", resolution, "Marching-cubes resolution of the final meshes")
       ->capture_default_str();
   app.add_flag("--overwrite", overwrite, "Allow a non-empty --out (without --resume)");
+  app.add_option("--stop-after-batches", stop_after,
+                 "Stop once this many batches have run in total, counting those before a "
+                 "--resume (checkpoint written, exit status 0; continue with --resume): a long "
+                 "solve in pieces");
   app.add_flag("--no-extract", no_extract, "Skip mesh extraction at the end");
   app.add_flag("--no-eval", no_eval, "Skip evaluation against ground truth at the end");
   app.add_flag("--quiet", quiet, "No progress lines");
@@ -67,6 +71,9 @@ int RunSolve(int argc, char** argv) {
   }
   if (resolution < 16 || resolution > 1024) {
     ThrowInputError("--resolution: expected 16..1024, got ", resolution);
+  }
+  if (app.count("--stop-after-batches") > 0 && stop_after < 0) {
+    ThrowInputError("--stop-after-batches: expected an integer >= 0, got ", stop_after);
   }
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -188,6 +195,7 @@ int RunSolve(int argc, char** argv) {
   options.out_dir = out_dir;
   options.resume = resume;
   options.quiet = quiet;
+  options.stop_after_batches = stop_after;
   if (source != nullptr) {
     CopySharedParameters(*source, model.get(), retarget_dir);  // model/make_model.h
     options.extra_constant = {ParameterGroup::kSdf,       ParameterGroup::kColor,
@@ -215,9 +223,10 @@ int RunSolve(int argc, char** argv) {
   Solver solver(dataset, config, std::move(model));
   const SolveResult result = solver.Run(options);
   if (result.interrupted) {
-    std::printf("interrupted: resume with  banmo solve --data %s --config %s --out %s --resume\n",
+    std::printf("%s: resume with  banmo solve --data %s --config %s --out %s --resume\n",
+                result.stopped ? "stopped as asked (--stop-after-batches)" : "interrupted",
                 data_dir.c_str(), config_path.c_str(), out_dir.c_str());
-    return 130;
+    return result.stopped ? 0 : 130;
   }
   for (const StageSummary& s : result.stages) {
     if (!s.finite) ThrowInputError("stage ", s.name, " produced non-finite parameters");

@@ -241,6 +241,7 @@ std::vector<int> VisiblePoints(const Eigen::Matrix3Xd& points_in_camera,
 
 Eigen::MatrixXd MeanFeatureEmbedding(const Model& model, const Dataset& dataset,
                                      const RegistrationProxy& proxy, double tolerance) {
+  CHECK_EQ(static_cast<int>(dataset.videos.size()), model.num_videos());
   const int n = static_cast<int>(proxy.subset.size());
   // Position of each surface vertex in the subset (-1: not fitted).
   std::vector<int> position(proxy.surface.cols(), -1);
@@ -403,6 +404,7 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
                                           std::uint32_t seed) {
   Timer timer;
   BoneRegistrationReport report;
+  CHECK_EQ(static_cast<int>(dataset.videos.size()), model->num_videos());
   const int B = model->num_bones();
   if (B == 0) {
     report.reason = "the model has no bones";

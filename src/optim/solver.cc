@@ -191,6 +191,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
         (options.stop_after_batches >= 0 && state->total_batches >= options.stop_after_batches)) {
       Save(s, batch_index, c);
       result->interrupted = true;
+      result->stopped = !g_interrupted;
       if (!options.quiet) {
         std::printf("[%s] stopped at batch %d; checkpoint written%s\n", stage.name.c_str(),
                     batch_index, options.out_dir.empty() ? " (none: no --out)" : "");

@@ -112,10 +112,38 @@ TEST(SolveCommand, RootInitRegistrationRegistersAPreparedVideoWithoutPoses) {
   EXPECT_EQ(off.out.find("root-pose registration"), std::string::npos) << off.out;
 }
 
+// --stop-after-batches: a 3-batch solve stopped after 2 batches exits 0 with
+// a checkpoint at batch 2 and the resume command; --resume finishes it.
+TEST(SolveCommand, StopAfterBatchesWritesACheckpointAndResumes) {
+  const std::string dir = Fresh("stop");
+  const auto s =
+      testing::RunBanmo("synth --videos 1 --frames 4 --size 32 --gaps 1 --out " + dir + "/data");
+  ASSERT_EQ(s.exit_code, 0) << s.out;
+  std::ofstream(dir + "/three.yaml")
+      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
+      << "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
+         "stages: [{name: one, batches: 3}]\n";
+  const std::string solve = "solve --data " + dir + "/data --config " + dir + "/three.yaml --out " +
+                            dir + "/out --no-extract --no-eval";
+  const auto stopped = testing::RunBanmo(solve + " --stop-after-batches 2");
+  ASSERT_EQ(stopped.exit_code, 0) << stopped.out;
+  EXPECT_NE(stopped.out.find("stopped as asked (--stop-after-batches): resume with"),
+            std::string::npos)
+      << stopped.out;
+  std::ifstream info(dir + "/out/checkpoint/checkpoint.yaml");
+  const std::string text((std::istreambuf_iterator<char>(info)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("batch: 2"), std::string::npos) << text;
+  const auto resumed = testing::RunBanmo(solve + " --resume");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.out;
+  EXPECT_NE(resumed.out.find("1 stage(s)"), std::string::npos) << resumed.out;
+  EXPECT_EQ(testing::RunBanmo(solve + " --resume --stop-after-batches -1").exit_code, 2);
+}
+
 TEST(SolveCommand, HelpListsTheOptions) {
   const auto r = testing::RunBanmo("solve --help");
   EXPECT_EQ(r.exit_code, 0);
-  for (const char* flag : {"--data", "--config", "--out", "--resume", "--retarget", "--seed"}) {
+  for (const char* flag : {"--data", "--config", "--out", "--resume", "--retarget", "--seed",
+                           "--stop-after-batches"}) {
     EXPECT_NE(r.out.find(flag), std::string::npos) << flag;
   }
 }

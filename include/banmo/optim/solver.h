@@ -103,6 +103,7 @@ struct SolveResult {
   // Per-frame pose solves (stage pose_solve.at), in order.
   std::vector<PoseSolveReport> pose_solves;
   bool interrupted = false;  // stopped by SIGINT or stop_after_batches (checkpoint written)
+  bool stopped = false;      // ... by stop_after_batches (as asked, not SIGINT)
 };
 
 class Solver {
