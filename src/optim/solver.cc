@@ -172,9 +172,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
       config_.stages[s - 1].bone_steps_articulated != stage.bone_steps_articulated) {
     // The bone transforms' tangent space changes (3 B + 3 against 6 B):
     // their Adam moments, temporal bases' included, start again.
-    for (auto m = state->adam.begin(); m != state->adam.end();) {
-      m = m->first.find("bones_t") != std::string::npos ? state->adam.erase(m) : std::next(m);
-    }
+    state->DropAdamMoments("bones_t");
   }
   run.summary.name = stage.name;
   StageProblem sp(model_.get(), stage, c->extra_constant);
@@ -384,10 +382,7 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
     const BoneRegistrationReport report = RegisterBoneMotion(
         &model, dataset_, bounds_, stage.bone_registration, static_cast<uint32_t>(c->state->rng()));
     if (report.registered) {
-      // The bone transforms jumped: their Adam moments are stale.
-      for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
-        m = m->first.find("bones_t") != std::string::npos ? c->state->adam.erase(m) : std::next(m);
-      }
+      c->state->DropAdamMoments("bones_t");  // the bone transforms jumped
       sp->batch().Invalidate();
     }
     if (!c->options.quiet) {
@@ -430,11 +425,8 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   report.stage = run.index;
   report.batch = batch_index;
   // The solved blocks jumped: their Adam moments are stale.
-  for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
-    const bool solved = (context.solve_root && m->first.find("/root_delta") != std::string::npos) ||
-                        (context.solve_bones && m->first.find("/bones_t") != std::string::npos);
-    m = solved ? c->state->adam.erase(m) : std::next(m);
-  }
+  if (context.solve_root) c->state->DropAdamMoments("/root_delta");
+  if (context.solve_bones) c->state->DropAdamMoments("/bones_t");
   sp->batch().Invalidate();
   if (!c->options.quiet) {
     std::string errors;

@@ -88,4 +88,10 @@ void SolverState::Deserialize(const std::string& in) {
   bounds = Eigen::AlignedBox3d(lo, hi);
 }
 
+void SolverState::DropAdamMoments(const std::string& part) {
+  for (auto m = adam.begin(); m != adam.end();) {
+    m = m->first.find(part) != std::string::npos ? adam.erase(m) : std::next(m);
+  }
+}
+
 }  // namespace banmo

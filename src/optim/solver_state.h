@@ -27,6 +27,10 @@ struct SolverState {
   std::vector<RaySampler::CachedPixel> error_cache;
   Eigen::AlignedBox3d bounds;
 
+  // Forgets the Adam moments of every block whose name contains `part`
+  // (blocks whose parameters jumped: a solve or a registration moved them).
+  void DropAdamMoments(const std::string& part);
+
   // state.bin: "BANMOST1", then the fields above in order.
   std::string Serialize() const;
   // Throws InputError on a truncated or foreign file.
