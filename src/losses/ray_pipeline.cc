@@ -443,6 +443,16 @@ void RayPipeline::CompositeResiduals(RayWork& w) {
       composite(u.data(), ev.residuals.data());
     }
   }
+  const int render_row = ev.term_row[static_cast<int>(LossTerm::kFeatureRender)];
+  if (jacobians && R > 0 && render_row >= 0 && options_.feature_render_embedding_only) {
+    // Only d r / d psi_i: the rendering weights (from the SDF values and log
+    // beta) are held at their values; the psi_i's inputs X*_i are held in
+    // the reverse chain (ReverseComposite).
+    const CompositeLocals& L = composite.locals();
+    const int rows = LossTermResiduals(LossTerm::kFeatureRender, n);
+    D.block(render_row, L.sdf, rows, n).setZero();
+    D.block(render_row, L.log_beta, rows, 1).setZero();
+  }
   if (gradient && R > 0) {
     // Each composite term's rows collapse into c = rho'(s) r, s = |r_term|^2.
     Eigen::RowVectorXd c(R);
@@ -560,7 +570,7 @@ void RayPipeline::ReverseComposite(RayWork& w) {
   for (int i = 0; i < n && Rc > 0; ++i) {
     const int col = s.field_offset + i;
     a_xstar.middleCols<3>(3 * i).noalias() += s.a_sdf.col(i) * fb.dsdf_dx.col(col).transpose();
-    if (L.has_embedding) {
+    if (L.has_embedding && !options_.feature_render_embedding_only) {
       constexpr int E = CompositeLocals::kEmbeddingDim;
       a_xstar.middleCols<3>(3 * i).noalias() +=
           s.a_psi.middleCols<E>(E * i) * sb.dpsi_dx.middleCols<3>(3 * (s.emb_offset + i));

@@ -129,6 +129,18 @@ class RayReferenceFunctor {
       }
     }
 
+    if (term_ == LossTerm::kFeatureRender && batch_.options().feature_render_embedding_only) {
+      // The embedding only: the rendering weights' inputs (SDF values, log
+      // beta) and the embedding's inputs X*_i held at their values.
+      for (int i = 0; i < n; ++i) u[L.sdf + i] = T(ValueOf(u[L.sdf + i]));
+      u[L.log_beta] = T(ValueOf(u[L.log_beta]));
+      for (int i = 0; i < n; ++i) {
+        const T x[3] = {T(ValueOf(x_star[3 * i])), T(ValueOf(x_star[3 * i + 1])),
+                        T(ValueOf(x_star[3 * i + 2]))};
+        field.EvaluateEmbedding(block[kBlockEmbedding], x,
+                                &u[L.embedding + CompositeLocals::kEmbeddingDim * i]);
+      }
+    }
     if (term_ != LossTerm::kCycle3d) {
       std::vector<T> all(composite.num_residuals());
       composite(u.data(), all.data());

@@ -60,6 +60,7 @@ template <class V>
 void VisitFields(V& v, LossesConfig& o) {
   for (const LossTermInfo& info : kLossTable) v(info.key, o[info.term]);
   v("bone_inside_margin", o.bone_inside_margin);
+  v("feature_render_embedding_only", o.feature_render_embedding_only);
 }
 
 template <class V>

@@ -34,6 +34,7 @@ RayBatchOptions BatchOptions(const StageConfig& stage) {
   RayBatchOptions o;
   o.weights = stage.losses.RayWeights();
   o.match_top_k = stage.sampling.match_top_k;
+  o.feature_render_embedding_only = stage.losses.feature_render_embedding_only;
   o.matcher.exact = true;  // deterministic (FLANN's trees are randomised)
   return o;
 }

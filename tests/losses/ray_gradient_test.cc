@@ -71,6 +71,7 @@ struct Case {
   int num_bones;
   bool huber;  // Huber(0.1) on rgb, flow and the 3D cycle; others plain
   bool delta_skinning = false;
+  bool feature_render_embedding_only = false;
 };
 
 class RayGradient : public ::testing::TestWithParam<Case> {};
@@ -80,6 +81,7 @@ TEST_P(RayGradient, EqualsRhoPrimeJacobianTransposeResidual) {
   TestSceneOptions o;
   o.num_bones = c.num_bones;
   o.delta_skinning = c.delta_skinning;
+  o.feature_render_embedding_only = c.feature_render_embedding_only;
   TestScene scene = MakeTestScene(o);
   RayBatch& batch = *scene.batch;
   ceres::HuberLoss huber(0.1);
@@ -114,6 +116,7 @@ TEST_P(RayGradient, EqualsCeresProblemEvaluateWithConstantBlocks) {
   TestSceneOptions o;
   o.num_bones = c.num_bones;
   o.delta_skinning = c.delta_skinning;
+  o.feature_render_embedding_only = c.feature_render_embedding_only;
   TestScene scene = MakeTestScene(o);
   Model& model = *scene.model;
   RayBatch& batch = *scene.batch;
@@ -176,7 +179,8 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Case{"bones_plain", 3, false}, Case{"bones_huber", 3, true},
                       Case{"no_bones_plain", 0, false}, Case{"no_bones_huber", 0, true},
                       Case{"delta_skinning_plain", 3, false, true},
-                      Case{"delta_skinning_huber", 3, true, true}),
+                      Case{"delta_skinning_huber", 3, true, true},
+                      Case{"feature_render_embedding_only", 3, true, false, true}),
     [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
 
 }  // namespace

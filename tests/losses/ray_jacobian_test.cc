@@ -292,6 +292,49 @@ TEST(RayBatch, NeusDensityMatchesFullJetReference) {
   for (LossTerm term : RayTerms()) ExpectBatchedCacheEqualsSingleRay(batch, term);
 }
 
+// losses.feature_render_embedding_only: the rendered-embedding term's
+// Jacobian matches the full-Jet reference (rendering weights and sample
+// points held at their values there too) and is zero in every block but the
+// embedding MLP's, where it equals the full term's; every other term is
+// unchanged.
+TEST(RayBatch, FeatureRenderEmbeddingOnlyMovesOnlyTheEmbedding) {
+  TestSceneOptions o;
+  o.feature_render_embedding_only = true;
+  TestScene scene = MakeTestScene(o);
+  TestScene full = MakeTestScene(TestSceneOptions());
+  RayBatch& batch = *scene.batch;
+  int rays_with_term = 0;
+  for (LossTerm term : RayTerms()) {
+    for (int r = 0; r < batch.num_rays(); ++r) {
+      if (!batch.rays()[r].HasTerm(term, batch.options().weights)) continue;
+      const std::vector<double*> params = batch.TermParameterBlocks(r, term);
+      const auto a = EvaluateCost(*batch.MakeCostFunction(r, term), params);
+      const auto b = EvaluateCost(*MakeReferenceCostFunction(batch, r, term), params);
+      const auto f = EvaluateCost(*full.batch->MakeCostFunction(r, term),
+                                  full.batch->TermParameterBlocks(r, term));
+      ASSERT_TRUE(a.ok && b.ok && f.ok);
+      EXPECT_LT(RelativeJacobianError(a, b), kReferenceTolerance)
+          << LossTermName(term) << " ray " << r;
+      EXPECT_EQ(a.residuals, f.residuals) << LossTermName(term) << " ray " << r;
+      for (size_t i = 0; i < params.size(); ++i) {
+        const bool embedding = params[i] == scene.model->embedding();
+        if (term != LossTerm::kFeatureRender || embedding) {
+          EXPECT_LT((a.jacobians[i] - f.jacobians[i]).cwiseAbs().maxCoeff(),
+                    1e-12 * std::max(1.0, f.jacobians[i].cwiseAbs().maxCoeff()))
+              << LossTermName(term) << " ray " << r << " block " << i;
+        } else {
+          EXPECT_EQ(a.jacobians[i].cwiseAbs().maxCoeff(), 0.0) << "ray " << r << " block " << i;
+          if (term == LossTerm::kFeatureRender) {
+            rays_with_term += f.jacobians[i].cwiseAbs().maxCoeff() > 0 ? 1 : 0;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(rays_with_term, 0) << "the full term moves other blocks";
+  for (LossTerm term : RayTerms()) ExpectBatchedCacheEqualsSingleRay(batch, term);
+}
+
 TEST(RayBatch, SilhouetteWeightScalesOnlyTheSilhouetteRows) {
   TestScene plain = MakeTestScene(SilhouetteWeightOptions(1.0));
   TestScene weighted = MakeTestScene(SilhouetteWeightOptions(4.0));

@@ -694,6 +694,7 @@ SolverConfig EveryFieldChanged() {
       x.robust = {RobustLossType::kCauchy, w * 2};
     }
     l.bone_inside_margin = 0.031;
+    l.feature_render_embedding_only = true;
     s.constant = {ParameterGroup::kSdf, ParameterGroup::kEmbedding};
     s.adam = {1.25e-3, 0.85, 0.995, 1e-10, 1e-4, LrSchedule::kConstant, 0.2, 0.05,
               2.5,     3.5,  4.5,   12,    5};
@@ -824,6 +825,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
       ExpectSameLoss(s.losses[info.term], t.losses[info.term]);
     }
     EXPECT_EQ(s.losses.bone_inside_margin, t.losses.bone_inside_margin);
+    EXPECT_EQ(s.losses.feature_render_embedding_only, t.losses.feature_render_embedding_only);
     EXPECT_EQ(s.constant, t.constant);
     EXPECT_EQ(s.adam.lr, t.adam.lr);
     EXPECT_EQ(s.adam.beta1, t.adam.beta1);

@@ -85,6 +85,14 @@ struct RayBatchOptions {
   // (docs/solver.md, "Skinning Jacobian cutoff"). 0 = every bone down to
   // double rounding, for exact Jacobian checks. In [0, 1).
   double skinning_jacobian_cutoff = 1e-4;
+  // The rendered-embedding term (feature_render) trains the embedding MLP
+  // only: its rendering weights tau_i and sample points X*_i are held at
+  // their values (no derivatives into the density, log beta, root poses,
+  // bones or delta skinning), so the embedding is regressed on the pixel
+  // features at the surface the other terms find, and the term cannot pull
+  // the shape or the motion toward the embedding it has (docs/solver.md,
+  // "An embedding regressed on the features").
+  bool feature_render_embedding_only = false;
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;

@@ -73,6 +73,9 @@ struct LossesConfig {
   LossesConfig();
   std::array<LossConfig, kNumLossTerms> terms;
   double bone_inside_margin = 0.02;  // canonical units
+  // The rendered-embedding term trains the embedding only
+  // (RayBatchOptions::feature_render_embedding_only).
+  bool feature_render_embedding_only = false;
 
   LossConfig& operator[](LossTerm term) { return terms.at(static_cast<size_t>(term)); }
   const LossConfig& operator[](LossTerm term) const { return terms.at(static_cast<size_t>(term)); }
