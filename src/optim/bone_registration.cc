@@ -115,10 +115,10 @@ struct BonePriorResidual {
 bool PixelOf(const Eigen::Vector4d& k, const Eigen::Vector3d& p, int width, int height,
              Eigen::Vector2i* pixel) {
   if (!(p.z() > kMinProjectionDepth)) return false;
-  const double u = k[0] * p.x() / p.z() + k[2];
-  const double v = k[1] * p.y() / p.z() + k[3];
-  if (!(u >= 0 && v >= 0 && u < width && v < height)) return false;
-  *pixel = Eigen::Vector2i(static_cast<int>(u), static_cast<int>(v));
+  Eigen::Vector2d uv;
+  ProjectPoint(k.data(), p.data(), uv.data());
+  if (!(uv.x() >= 0 && uv.y() >= 0 && uv.x() < width && uv.y() < height)) return false;
+  *pixel = uv.cast<int>();
   return true;
 }
 
