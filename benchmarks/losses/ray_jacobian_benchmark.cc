@@ -5,7 +5,10 @@
 // layers; second argument: delta skinning off/on (MLP_Delta of the same
 // width, 1 hidden layer, non-zero output layer). BM_RayGradient_Batched is
 // the first-order path Adam uses (RayBatch::EvaluateGradient: one cotangent
-// row per ray, no Jacobian).
+// row per ray, no Jacobian). BM_RayGradient_FeatureRender: the same with
+// the rendered-embedding term on (weight 0.2, 16 rows per ray), second
+// argument losses.feature_render_embedding_only off/on (problems/default.yaml
+// ships it on), no delta skinning.
 //
 //   ./build/bin/ray_jacobian_benchmark --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
@@ -67,6 +70,22 @@ void BM_RayGradient_Batched(benchmark::State& state) {
                                                     benchmark::Counter::kIsRate);
 }
 
+void BM_RayGradient_FeatureRender(benchmark::State& state) {
+  const int width = static_cast<int>(state.range(0));
+  constexpr int kRays = 512;
+  TestSceneOptions o = BenchmarkScene(width, kRays, /*delta_skinning=*/false);
+  o.weights[LossTerm::kFeatureRender] = 0.2;
+  o.feature_render_embedding_only = state.range(1) != 0;
+  TestScene scene = MakeTestScene(o);
+  const RayRobustLosses robust{};
+  for (auto _ : state) {
+    std::map<const double*, Eigen::VectorXd> gradient;
+    benchmark::DoNotOptimize(scene.batch->EvaluateGradient(robust, &gradient));
+  }
+  state.counters["rays_per_s"] = benchmark::Counter(static_cast<double>(kRays) * state.iterations(),
+                                                    benchmark::Counter::kIsRate);
+}
+
 void BM_RayJacobian_FullJet(benchmark::State& state) {
   const int width = static_cast<int>(state.range(0));
   TestScene scene = MakeTestScene(BenchmarkScene(width, 1, state.range(1) != 0));
@@ -104,6 +123,11 @@ BENCHMARK(BM_RayJacobian_Batched)
 BENCHMARK(BM_RayGradient_Batched)
     ->ArgsProduct({{16, 32, 64}, {0, 1}})
     ->ArgNames({"width", "delta"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_RayGradient_FeatureRender)
+    ->ArgsProduct({{16, 32, 64}, {0, 1}})
+    ->ArgNames({"width", "embedding_only"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_RayJacobian_FullJet)

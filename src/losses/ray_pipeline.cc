@@ -253,7 +253,9 @@ void RayPipeline::EvaluateFields() {
       const RayScratch& s = scratch[r];
       if (s.num_emb > 0) sb.x.middleCols(s.emb_offset, s.num_emb) = s.x_star;
     }
-    field.ForwardEmbeddingBatch(embedding_params, &sb, jacobians);
+    // d psi / d X*_i only when the term moves the samples (not embedding-only).
+    field.ForwardEmbeddingBatch(embedding_params, &sb,
+                                jacobians && !options_.feature_render_embedding_only);
   }
   if (total_match > 0) {
     eb.x.resize(3, total_match);
@@ -436,23 +438,30 @@ void RayPipeline::CompositeResiduals(RayWork& w) {
   const int R = w.R;
   std::vector<double>& u = w.u;
   RowMajorMatrix& D = w.D;
+  const int render_row = ev.term_row[static_cast<int>(LossTerm::kFeatureRender)];
   if (R > 0) {
     if (jacobians) {
-      ChunkedJacobian<32>(composite, u, R, ev.residuals.data(), &D);
+      // The embedding inputs (last in u) in closed form: 16 N fewer Jet
+      // directions. Embedding-only, the term's other columns are not wanted
+      // either, and it leaves the Jets altogether.
+      const CompositeLocals& L = composite.locals();
+      const bool skip = L.has_embedding && options_.feature_render_embedding_only;
+      ChunkedJacobian<32>(
+          [&](const auto* x, auto* out) { return composite.Evaluate(x, out, skip); }, u, R,
+          ev.residuals.data(), &D, L.has_embedding ? L.embedding : -1);
+      if (L.has_embedding) {
+        constexpr int E = CompositeLocals::kEmbeddingDim;
+        composite.EmbeddingJacobian(u.data(), D.block(render_row, L.embedding, E, E * n),
+                                    skip ? ev.residuals.data() + render_row : nullptr);
+      }
     } else {
       composite(u.data(), ev.residuals.data());
     }
   }
-  const int render_row = ev.term_row[static_cast<int>(LossTerm::kFeatureRender)];
-  if (jacobians && R > 0 && render_row >= 0 && options_.feature_render_embedding_only) {
-    // Only d r / d psi_i: the rendering weights (from the SDF values and log
-    // beta) are held at their values; the psi_i's inputs X*_i are held in
-    // the reverse chain (ReverseComposite).
-    const CompositeLocals& L = composite.locals();
-    const int rows = LossTermResiduals(LossTerm::kFeatureRender, n);
-    D.block(render_row, L.sdf, rows, n).setZero();
-    D.block(render_row, L.log_beta, rows, 1).setZero();
-  }
+  // Embedding-only: only d r / d psi_i; the rendering weights (from the SDF
+  // values and log beta) are held at their values (the rows' other columns
+  // stay zero: ChunkedJacobian above), the psi_i's inputs X*_i in the
+  // reverse chain (ReverseComposite).
   if (gradient && R > 0) {
     // Each composite term's rows collapse into c = rho'(s) r, s = |r_term|^2.
     Eigen::RowVectorXd c(R);

@@ -47,16 +47,22 @@ void SeedJets(const double* values, int count, int first_direction, JetN<N>* out
 
 // Values and Jacobian (num_out x u.size()) of f(u), by forward-mode Jets in
 // chunks of kStride directions (like ceres::DynamicAutoDiffCostFunction).
+// Only the first num_seeded inputs (all when negative) get directions; the
+// other columns are set to zero for the caller to fill (inputs whose
+// derivatives it knows in closed form).
 template <int kStride, typename Functor>
 void ChunkedJacobian(const Functor& f, const std::vector<double>& u, int num_out, double* values,
-                     RowMajorMatrix* jacobian) {
+                     RowMajorMatrix* jacobian, int num_seeded = -1) {
   using J = JetN<kStride>;
   const int n = static_cast<int>(u.size());
+  const int seeded = num_seeded < 0 ? n : std::min(num_seeded, n);
+  CHECK_GT(seeded, 0) << "ChunkedJacobian needs at least one seeded input";
   std::vector<J> uj(n), out(num_out);
   jacobian->resize(num_out, n);
-  for (int start = 0; start < n; start += kStride) {
+  if (seeded < n) jacobian->rightCols(n - seeded).setZero();
+  for (int start = 0; start < seeded; start += kStride) {
     for (int i = 0; i < n; ++i) uj[i] = J(u[i]);
-    const int end = std::min(n, start + kStride);
+    const int end = std::min(seeded, start + kStride);
     for (int i = start; i < end; ++i) uj[i].v[i - start] = 1.0;
     f(uj.data(), out.data());
     for (int r = 0; r < num_out; ++r) {

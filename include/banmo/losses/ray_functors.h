@@ -138,6 +138,15 @@ class RayCompositeFunctor {
 
   template <typename T>
   bool operator()(const T* u, T* residual) const {
+    return Evaluate(u, residual, /*skip_feature_render=*/false);
+  }
+
+  // operator() with the option to leave the feature_render rows untouched:
+  // when its derivatives wrt the SDF values and log beta are not wanted
+  // (losses.feature_render_embedding_only), EmbeddingJacobian gives its
+  // values and the rest of its Jacobian without Jets.
+  template <typename T>
+  bool Evaluate(const T* u, T* residual, bool skip_feature_render) const {
     const int n = locals_.num_samples;
     std::vector<T> tau(n);
     CompositeWeights(n, u + locals_.sdf, u[locals_.log_beta], ray_.samples.deltas.data(), density_,
@@ -180,7 +189,7 @@ class RayCompositeFunctor {
                                                          residual + row);
       row += Cycle2dLoss::kNumResiduals;
     }
-    if (active(LossTerm::kFeatureRender)) {
+    if (active(LossTerm::kFeatureRender) && !skip_feature_render) {
       constexpr int E = CompositeLocals::kEmbeddingDim;
       T rendered[E];
       for (int k = 0; k < E; ++k) rendered[k] = T(0);
@@ -191,6 +200,41 @@ class RayCompositeFunctor {
       row += FeatureRenderLoss::kNumResiduals;
     }
     return true;
+  }
+
+  // The rendered-embedding rows' derivatives wrt the embedding inputs, in
+  // closed form: rendered = sum_i tau_i psi_i, so d r / d psi_i = tau_i
+  // dFeatureRenderLoss/d rendered (one 16 x 16 Jet evaluation). The
+  // embedding inputs enter no other term, so the Jets of operator() need
+  // not carry these 16 N directions (ChunkedJacobian's num_seeded); the
+  // full-Jet reference (ray_reference.cc) checks the two agree. jacobian:
+  // 16 x 16 N, the block of the feature_render rows and embedding columns;
+  // residual (may be null): the 16 rows' values.
+  void EmbeddingJacobian(
+      const double* u,
+      Eigen::Ref<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jacobian,
+      double* residual_values) const {
+    constexpr int E = CompositeLocals::kEmbeddingDim;
+    using J = ceres::Jet<double, E>;
+    const int n = locals_.num_samples;
+    std::vector<double> tau(n);
+    CompositeWeights(n, u + locals_.sdf, u[locals_.log_beta], ray_.samples.deltas.data(), density_,
+                     tau.data());
+    J rendered[E], residual[E];
+    for (int k = 0; k < E; ++k) {
+      double e = 0.0;
+      for (int i = 0; i < n; ++i) e += tau[i] * u[locals_.embedding + E * i + k];
+      rendered[k] = J(e, k);
+    }
+    FeatureRenderLoss(ray_.feature, weights_[LossTerm::kFeatureRender])(rendered, residual);
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < E; ++j) {
+        for (int k = 0; k < E; ++k) jacobian(j, E * i + k) = tau[i] * residual[j].v[k];
+      }
+    }
+    if (residual_values != nullptr) {
+      for (int j = 0; j < E; ++j) residual_values[j] = residual[j].a;
+    }
   }
 
  private:
