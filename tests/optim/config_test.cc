@@ -131,6 +131,8 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   ASSERT_EQ(c.stages.size(), 3u);
   // Stage 1: bones re-initialised early (paper) and again once the limbs have formed.
   EXPECT_EQ(c.stages[0].schedule.bone_reinit_at, (std::vector<double>{0.2, 0.5}));
+  // Bones registered after the second re-initialisation and again at 75 %.
+  EXPECT_EQ(c.stages[0].bone_registration.at, (std::vector<double>{0.5, 0.75}));
   // Stage 2: 2D cycle (and a little silhouette), articulation only.
   const StageConfig& s2 = c.stages[1];
   EXPECT_GT(s2.losses[LossTerm::kCycle2d].weight, 0);
