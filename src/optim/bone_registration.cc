@@ -472,11 +472,9 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
       before.push_back(results[k].median_match_px_before);
       after.push_back(results[k].median_match_px_after);
       const double* bones_t = model->frame(v, t).bones_t.data();
+      const Pose identity = PoseIdentity();
       for (int b = 0; b < B; ++b) {
-        const double* q = bones_t + kPoseSize * b;
-        const double w =
-            std::min(1.0, std::abs(q[0]) / Eigen::Map<const Eigen::Vector4d>(q).norm());
-        turn += 2.0 * std::acos(w) * 180.0 / M_PI / B;
+        turn += RotationAngleBetween(bones_t + kPoseSize * b, identity.data()) * 180.0 / M_PI / B;
       }
     }
   }
