@@ -1,6 +1,7 @@
 #include "banmo/optim/bone_registration.h"
 
 #include <ceres/autodiff_cost_function.h>
+#include <ceres/cubic_interpolation.h>
 #include <ceres/dynamic_autodiff_cost_function.h>
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
@@ -13,6 +14,7 @@
 #include <cstdio>
 #include <limits>
 #include <numeric>
+#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "banmo/deform/bones.h"
@@ -27,24 +29,33 @@
 namespace banmo {
 namespace {
 
+// The pixel of a skinned point: Project(K, G sum_k w_k J_{b_k} x), the
+// bone transforms J_{b_k} in `parameters` (in the order of point.bones).
+template <typename T>
+void ProjectSkinnedPoint(const SkinnedPoint& point, const Pose& camera_from_root,
+                         const Eigen::Vector4d& intrinsics, T const* const* parameters, T* uv) {
+  const T x[3] = {T(point.x[0]), T(point.x[1]), T(point.x[2])};
+  T blended[3] = {T(0), T(0), T(0)};
+  for (size_t k = 0; k < point.bones.size(); ++k) {
+    T z[3];
+    PoseTransformPoint(parameters[k], x, z);
+    for (int i = 0; i < 3; ++i) blended[i] += T(point.weights[k]) * z[i];
+  }
+  T g[kPoseSize], K[4], cam[3];
+  for (int i = 0; i < kPoseSize; ++i) g[i] = T(camera_from_root[i]);
+  for (int i = 0; i < 4; ++i) K[i] = T(intrinsics[i]);
+  PoseTransformPoint(g, blended, cam);
+  ProjectPoint(K, cam, uv);
+}
+
 struct SkinnedPixelResidual {
   SkinnedPixelResidual(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k,
                        const Eigen::Vector2d& uv)
       : point(p), camera_from_root(g), intrinsics(k), target(uv) {}
   template <typename T>
   bool operator()(T const* const* parameters, T* residuals) const {
-    const T x[3] = {T(point.x[0]), T(point.x[1]), T(point.x[2])};
-    T blended[3] = {T(0), T(0), T(0)};
-    for (size_t k = 0; k < point.bones.size(); ++k) {
-      T z[3];
-      PoseTransformPoint(parameters[k], x, z);
-      for (int i = 0; i < 3; ++i) blended[i] += T(point.weights[k]) * z[i];
-    }
-    T g[kPoseSize], K[4], cam[3], uv[2];
-    for (int i = 0; i < kPoseSize; ++i) g[i] = T(camera_from_root[i]);
-    for (int i = 0; i < 4; ++i) K[i] = T(intrinsics[i]);
-    PoseTransformPoint(g, blended, cam);
-    ProjectPoint(K, cam, uv);
+    T uv[2];
+    ProjectSkinnedPoint(point, camera_from_root, intrinsics, parameters, uv);
     residuals[0] = uv[0] - T(target[0]);
     residuals[1] = uv[1] - T(target[1]);
     return true;
@@ -53,6 +64,35 @@ struct SkinnedPixelResidual {
   const Pose camera_from_root;
   const Eigen::Vector4d intrinsics;
   const Eigen::Vector2d target;
+};
+
+// Holds the distance image (a cv::Mat header: shared, reference-counted
+// data) and the interpolator reading it, so it is neither copied nor moved.
+struct SkinnedMaskResidual {
+  SkinnedMaskResidual(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k,
+                      const cv::Mat& d)
+      : point(p),
+        camera_from_root(g),
+        intrinsics(k),
+        distance(d),
+        grid(distance.ptr<float>(), 0, distance.rows, 0, distance.cols),
+        interpolator(grid) {}
+  SkinnedMaskResidual(const SkinnedMaskResidual&) = delete;
+  SkinnedMaskResidual& operator=(const SkinnedMaskResidual&) = delete;
+  template <typename T>
+  bool operator()(T const* const* parameters, T* residuals) const {
+    T uv[2];
+    ProjectSkinnedPoint(point, camera_from_root, intrinsics, parameters, uv);
+    // Pixel (i, j) holds the value at its centre (i + 0.5, j + 0.5).
+    interpolator.Evaluate(uv[1] - T(0.5), uv[0] - T(0.5), residuals);
+    return true;
+  }
+  const SkinnedPoint point;
+  const Pose camera_from_root;
+  const Eigen::Vector4d intrinsics;
+  const cv::Mat distance;
+  const ceres::Grid2D<float, 1> grid;
+  const ceres::BiCubicInterpolator<ceres::Grid2D<float, 1>> interpolator;
 };
 
 struct BonePairResidual {
@@ -161,6 +201,31 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunction(const SkinnedP
       new SkinnedPixelResidual(point, camera_from_root, intrinsics, target));
   for (size_t k = 0; k < point.bones.size(); ++k) cost->AddParameterBlock(kPoseSize);
   cost->SetNumResiduals(2);
+  return cost;
+}
+
+cv::Mat MaskOutsideDistance(const cv::Mat& mask) {
+  CHECK_EQ(mask.type(), CV_8UC1);
+  // Zero where the distance is 0 (object, ignored), non-zero elsewhere.
+  const cv::Mat outside = mask == kMaskBackground;
+  if (cv::countNonZero(outside) == static_cast<int>(mask.total())) return cv::Mat();
+  cv::Mat distance;
+  cv::distanceTransform(outside, distance, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+  return distance;
+}
+
+std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunction(const SkinnedPoint& point,
+                                                                 const Pose& camera_from_root,
+                                                                 const Eigen::Vector4d& intrinsics,
+                                                                 const cv::Mat& distance) {
+  CHECK(!point.bones.empty());
+  CHECK_EQ(point.bones.size(), point.weights.size());
+  CHECK_EQ(distance.type(), CV_32FC1);
+  CHECK(distance.isContinuous());
+  auto cost = std::make_unique<ceres::DynamicAutoDiffCostFunction<SkinnedMaskResidual, 14>>(
+      new SkinnedMaskResidual(point, camera_from_root, intrinsics, distance));
+  for (size_t k = 0; k < point.bones.size(); ++k) cost->AddParameterBlock(kPoseSize);
+  cost->SetNumResiduals(1);
   return cost;
 }
 
@@ -306,7 +371,8 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
                                      int num_bones, const double* bones,
                                      const Pose& camera_from_root,
                                      const Eigen::Vector4d& intrinsics, const double* previous,
-                                     const BoneRegistrationConfig& config, double* bones_t) {
+                                     const BoneRegistrationConfig& config, double* bones_t,
+                                     const cv::Mat* mask_distance) {
   CHECK_GT(num_bones, 0);
   const int B = num_bones;
   ceres::Problem problem;
@@ -331,6 +397,23 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
       match_blocks.push_back(problem.AddResidualBlock(
           MakeSkinnedPixelCostFunction(p, camera_from_root, intrinsics, matches.pixel[i]).release(),
           loss, blocks));
+    }
+  }
+  if (config.mask_weight > 0 && mask_distance != nullptr && !mask_distance->empty() &&
+      !proxy.points.empty()) {
+    // Every stride-th fitted vertex (the proxy's are a random subset).
+    const int total = static_cast<int>(proxy.points.size());
+    const int stride = std::max(1, (total + config.mask_points - 1) / config.mask_points);
+    const int m = (total + stride - 1) / stride;
+    auto* loss = new ceres::ScaledLoss(new ceres::HuberLoss(config.huber_px),
+                                       config.mask_weight / m, ceres::TAKE_OWNERSHIP);
+    for (int i = 0; i < total; i += stride) {
+      const SkinnedPoint& p = proxy.points[i];
+      std::vector<double*> blocks;
+      for (int b : p.bones) blocks.push_back(block(b));
+      problem.AddResidualBlock(
+          MakeSkinnedMaskCostFunction(p, camera_from_root, intrinsics, *mask_distance).release(),
+          loss, blocks);
     }
   }
   int shared = 0;
@@ -455,8 +538,10 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
         const FrameMatches matches = MatchFrameFeatures(
             embedding, f, config.match_pixels, seed + 7919u * static_cast<std::uint32_t>(k + 1));
         if (previous != nullptr) std::copy(previous, previous + kPoseSize * B, bones_t);
-        results[k] = RegisterFrameBones(proxy, matches, B, model->bones(), model->RootPose(v, t),
-                                        model->video(v).intrinsics, previous, config, bones_t);
+        const cv::Mat distance = config.mask_weight > 0 ? MaskOutsideDistance(f.mask) : cv::Mat();
+        results[k] =
+            RegisterFrameBones(proxy, matches, B, model->bones(), model->RootPose(v, t),
+                               model->video(v).intrinsics, previous, config, bones_t, &distance);
         done[k] = 1;
         previous = bones_t;
       }

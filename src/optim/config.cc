@@ -146,6 +146,8 @@ void VisitFields(V& v, BoneRegistrationConfig& o) {
   v("rest_weight", o.rest_weight);
   v("visible_tolerance", o.visible_tolerance);
   v("iterations", o.iterations);
+  v("mask_weight", o.mask_weight);
+  v("mask_points", o.mask_points);
 }
 
 template <class V>
@@ -749,6 +751,8 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(r + ".rest_weight", reg.rest_weight);
   c.Positive(r + ".visible_tolerance", reg.visible_tolerance);
   c.Positive(r + ".iterations", reg.iterations);
+  c.NonNegative(r + ".mask_weight", reg.mask_weight);
+  c.Positive(r + ".mask_points", reg.mask_points);
 
   if (s.bone_steps_articulated && s.bone_steps_about_centres) {
     c.Fail(p + ".bone_steps_articulated",

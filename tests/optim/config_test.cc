@@ -448,6 +448,10 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).bone_registration.visible_tolerance = 0; }},
       {"stages[1].bone_registration.iterations",
        [&](SolverConfig* c) { S(c).bone_registration.iterations = 0; }},
+      {"stages[1].bone_registration.mask_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.mask_weight = -1; }},
+      {"stages[1].bone_registration.mask_points",
+       [&](SolverConfig* c) { S(c).bone_registration.mask_points = 0; }},
       {"model.delta_skinning.width",
        [&](SolverConfig* c) {
          c->model.delta_skinning.enabled = true;
@@ -744,6 +748,8 @@ SolverConfig EveryFieldChanged() {
     s.bone_registration.rest_weight = 0.02 + 0.01 * i;
     s.bone_registration.visible_tolerance = 0.07 + 0.01 * i;
     s.bone_registration.iterations = 7 + i;
+    s.bone_registration.mask_weight = 0.5 + i;
+    s.bone_registration.mask_points = 200 + i;
     s.bone_steps_about_centres = i == 0;  // the two are exclusive
     s.bone_steps_articulated = i != 0;
     s.checkpoint_every = 50;
@@ -886,6 +892,8 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(r.rest_weight, u.rest_weight);
     EXPECT_EQ(r.visible_tolerance, u.visible_tolerance);
     EXPECT_EQ(r.iterations, u.iterations);
+    EXPECT_EQ(r.mask_weight, u.mask_weight);
+    EXPECT_EQ(r.mask_points, u.mask_points);
     EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
     EXPECT_EQ(s.bone_steps_articulated, t.bone_steps_articulated);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);

@@ -32,7 +32,14 @@
 //      smooth  each bone's turn (rad) and centre travel against the
 //              previous frame's fit (a video's first frame: the identity),
 //              weight smooth_weight / B, in the same pixel units;
-//      rest    the same against the identity, weight rest_weight / B.
+//      rest    the same against the identity, weight rest_weight / B;
+//      mask    (mask_weight > 0) the distance from the projection of each of
+//              mask_points fitted vertices to the frame's mask (0 inside),
+//              Huber(huber_px), weight mask_weight / mask_points: every
+//              vertex, seen or not, projects into the silhouette, which
+//              constrains the parts no match sees (a wing seen edge-on).
+//              It asks for containment, not coverage: a part no match
+//              holds may also fold toward the camera to fit (tests).
 //
 // Deterministic: subsets and pixels are drawn from `seed`; videos run in
 // parallel, each on its own.
@@ -81,6 +88,23 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunction(const SkinnedP
                                                                   const Pose& camera_from_root,
                                                                   const Eigen::Vector4d& intrinsics,
                                                                   const Eigen::Vector2d& target);
+
+// The mask term's image: each pixel's distance (pixels, between pixel
+// centres) to the nearest object pixel of `mask` (CV_8UC1, dataset.h
+// values), 0 on object and ignored pixels; CV_32FC1. Empty when the mask
+// has no object pixel.
+cv::Mat MaskOutsideDistance(const cv::Mat& mask);
+
+// The distance image at a skinned point's pixel:
+//   r = D(Project(intrinsics, G^t sum_k w_k J_{b_k}^t x)),
+// D bicubic-interpolated (ceres::BiCubicInterpolator, clamped at the image
+// border) with pixel (i, j)'s value at (i + 0.5, j + 0.5). Parameter blocks
+// as MakeSkinnedPixelCostFunction. Autodiff; keeps a reference to
+// `distance`'s data (cv::Mat's reference count).
+std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunction(const SkinnedPoint& point,
+                                                                 const Pose& camera_from_root,
+                                                                 const Eigen::Vector4d& intrinsics,
+                                                                 const cv::Mat& distance);
 
 // Two bones' images of one canonical point m, r = scale (J_a m - J_b m);
 // parameter blocks J_a, J_b. Autodiff.
@@ -138,7 +162,9 @@ FrameMatches MatchFrameFeatures(const Eigen::MatrixXd& embedding, const Frame& f
                                 std::uint32_t seed);
 
 // Step 4 for one frame: fits bones_t (kPoseSize B, in and out) from its
-// value; `previous` is the previous frame's fit (null: the identity).
+// value; `previous` is the previous frame's fit (null: the identity);
+// `mask_distance` the frame's MaskOutsideDistance (null or empty: no mask
+// term).
 // Returns the final cost (Ceres' 1/2 sum of squares).
 struct FrameRegistration {
   double initial_cost = 0.0;
@@ -151,7 +177,8 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
                                      int num_bones, const double* bones,
                                      const Pose& camera_from_root,
                                      const Eigen::Vector4d& intrinsics, const double* previous,
-                                     const BoneRegistrationConfig& config, double* bones_t);
+                                     const BoneRegistrationConfig& config, double* bones_t,
+                                     const cv::Mat* mask_distance = nullptr);
 
 struct BoneRegistrationReport {
   bool registered = false;

@@ -216,6 +216,8 @@ struct BoneRegistrationConfig {
   double rest_weight = 0.01;        // each bone's pull to the rest pose (the identity)
   double visible_tolerance = 0.05;  // z-buffer tolerance (model units)
   int iterations = 20;              // LM iterations per frame
+  double mask_weight = 0.0;         // fitted vertices pulled into the frame's mask (0 = off)
+  int mask_points = 1000;           // fitted vertices of the mask term, spread over the proxy
 };
 
 // Parameter groups held constant (ceres SetParameterBlockConstant):
