@@ -57,17 +57,22 @@ void BM_RayJacobian_Batched(benchmark::State& state) {
                               scene.model->embedding_size() + scene.model->delta_skinning_size();
 }
 
-void BM_RayGradient_Batched(benchmark::State& state) {
-  const int width = static_cast<int>(state.range(0));
-  constexpr int kRays = 512;
-  TestScene scene = MakeTestScene(BenchmarkScene(width, kRays, state.range(1) != 0));
+// The gradient path (RayBatch::EvaluateGradient) on `num_rays` rays.
+void TimeGradient(benchmark::State& state, const TestSceneOptions& options, int num_rays) {
+  TestScene scene = MakeTestScene(options);
   const RayRobustLosses robust{};
   for (auto _ : state) {
     std::map<const double*, Eigen::VectorXd> gradient;
     benchmark::DoNotOptimize(scene.batch->EvaluateGradient(robust, &gradient));
   }
-  state.counters["rays_per_s"] = benchmark::Counter(static_cast<double>(kRays) * state.iterations(),
-                                                    benchmark::Counter::kIsRate);
+  state.counters["rays_per_s"] = benchmark::Counter(
+      static_cast<double>(num_rays) * state.iterations(), benchmark::Counter::kIsRate);
+}
+
+void BM_RayGradient_Batched(benchmark::State& state) {
+  constexpr int kRays = 512;
+  TimeGradient(state, BenchmarkScene(static_cast<int>(state.range(0)), kRays, state.range(1) != 0),
+               kRays);
 }
 
 void BM_RayGradient_FeatureRender(benchmark::State& state) {
@@ -76,14 +81,7 @@ void BM_RayGradient_FeatureRender(benchmark::State& state) {
   TestSceneOptions o = BenchmarkScene(width, kRays, /*delta_skinning=*/false);
   o.weights[LossTerm::kFeatureRender] = 0.2;
   o.feature_render_embedding_only = state.range(1) != 0;
-  TestScene scene = MakeTestScene(o);
-  const RayRobustLosses robust{};
-  for (auto _ : state) {
-    std::map<const double*, Eigen::VectorXd> gradient;
-    benchmark::DoNotOptimize(scene.batch->EvaluateGradient(robust, &gradient));
-  }
-  state.counters["rays_per_s"] = benchmark::Counter(static_cast<double>(kRays) * state.iterations(),
-                                                    benchmark::Counter::kIsRate);
+  TimeGradient(state, o, kRays);
 }
 
 void BM_RayJacobian_FullJet(benchmark::State& state) {

@@ -193,23 +193,40 @@ TEST(BoneRegistration, VisiblePointsHideWhatIsBehindInTheSamePixel) {
 // Two bones along a bar; bone 1 turned and moved at frame t. From exact
 // matches (each vertex's true pixel) the fit started at the identity
 // recovers the transforms: the pixels to 0.01 px, bone 1's turn to 0.1 deg.
-TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
-  const int B = 2;
-  std::vector<double> bones(kBoneSize * B);
-  InitializeBones({Eigen::Vector3d(-0.4, 0, 0), Eigen::Vector3d(0.4, 0, 0)}, 0.3, bones.data());
-  // A bar of points with the Gaussian bones' weights.
-  const int n = 400;
+// Two bones at x = -0.4 and 0.4 and a bar of n random points along them
+// with the Gaussian bones' skinning weights.
+struct BarScene {
+  static constexpr int B = 2;
+  std::vector<double> bones;
+  Eigen::Matrix3Xd surface;
+  Eigen::MatrixXd weights;
+};
+
+BarScene MakeBarScene(int n) {
+  BarScene bar;
+  const int B = BarScene::B;
+  bar.bones.resize(kBoneSize * B);
+  InitializeBones({Eigen::Vector3d(-0.4, 0, 0), Eigen::Vector3d(0.4, 0, 0)}, 0.3, bar.bones.data());
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> uni(-1, 1);
-  Eigen::Matrix3Xd surface(3, n);
-  Eigen::MatrixXd weights(B, n);
+  bar.surface.resize(3, n);
+  bar.weights.resize(B, n);
   for (int i = 0; i < n; ++i) {
-    surface.col(i) = Eigen::Vector3d(0.9 * uni(rng), 0.15 * uni(rng), 0.15 * uni(rng));
+    bar.surface.col(i) = Eigen::Vector3d(0.9 * uni(rng), 0.15 * uni(rng), 0.15 * uni(rng));
     double logits[B];
-    for (int b = 0; b < B; ++b) logits[b] = BoneLogit(bones.data() + kBoneSize * b, &surface(0, i));
-    SkinningWeights(B, logits, weights.col(i).data());
+    for (int b = 0; b < B; ++b) {
+      logits[b] = BoneLogit(bar.bones.data() + kBoneSize * b, &bar.surface(0, i));
+    }
+    SkinningWeights(B, logits, bar.weights.col(i).data());
   }
-  const RegistrationProxy proxy = MakeRegistrationProxy(surface, weights, 300, 0.15, 40, 5);
+  return bar;
+}
+
+TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
+  const int B = BarScene::B;
+  const BarScene bar = MakeBarScene(400);
+  const std::vector<double>& bones = bar.bones;
+  const RegistrationProxy proxy = MakeRegistrationProxy(bar.surface, bar.weights, 300, 0.15, 40, 5);
   ASSERT_EQ(proxy.points.size(), 300u);
   ASSERT_EQ(proxy.pairs.size(), 1u);
 
@@ -264,20 +281,12 @@ TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
 }
 
 TEST(BoneRegistration, MaskTermPullsABoneNoMatchSeesIntoTheSilhouette) {
-  const int B = 2;
-  std::vector<double> bones(kBoneSize * B);
-  InitializeBones({Eigen::Vector3d(-0.4, 0, 0), Eigen::Vector3d(0.4, 0, 0)}, 0.3, bones.data());
+  const int B = BarScene::B;
   const int n = 2000;
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> uni(-1, 1);
-  Eigen::Matrix3Xd surface(3, n);
-  Eigen::MatrixXd weights(B, n);
-  for (int i = 0; i < n; ++i) {
-    surface.col(i) = Eigen::Vector3d(0.9 * uni(rng), 0.15 * uni(rng), 0.15 * uni(rng));
-    double logits[B];
-    for (int b = 0; b < B; ++b) logits[b] = BoneLogit(bones.data() + kBoneSize * b, &surface(0, i));
-    SkinningWeights(B, logits, weights.col(i).data());
-  }
+  const BarScene bar = MakeBarScene(n);
+  const std::vector<double>& bones = bar.bones;
+  const Eigen::Matrix3Xd& surface = bar.surface;
+  const Eigen::MatrixXd& weights = bar.weights;
   const RegistrationProxy proxy = MakeRegistrationProxy(surface, weights, 600, 0.15, 40, 5);
   // Bone 1 turned by 30 deg about the view axis; the mask is the posed bar's
   // silhouette (every surface point drawn as a disc of 3 px).
