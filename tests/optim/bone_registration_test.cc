@@ -54,26 +54,40 @@ TEST(BoneRegistration, SkinnedPointKeepsBonesAboveTheCutoffRenormalised) {
   EXPECT_NEAR(p.weights[0] / p.weights[1], w[0] / w[2], 1e-12);
 }
 
+// A point blended from bones 1 and 3 (weights 0.7, 0.3), their transforms,
+// a root pose and intrinsics; Pixel() projects the blend directly.
+struct SkinnedPointCase {
+  SkinnedPoint p;
+  Pose j1 = TurnAbout(Eigen::Vector3d(0.1, 0.4, -0.2), Eigen::Vector3d(0, 0.1, 0),
+                      Eigen::Vector3d(0.05, 0, 0.02));
+  Pose j3 = TurnAbout(Eigen::Vector3d(-0.3, 0.1, 0.2), Eigen::Vector3d(0.3, 0, 0.1),
+                      Eigen::Vector3d(0, -0.04, 0));
+  Pose g = PoseFromAngleAxis(Eigen::Vector3d(0.2, -0.5, 0.1), Eigen::Vector3d(0.1, 0, 3));
+  Eigen::Vector4d k = Eigen::Vector4d(120, 110, 64, 60);
+
+  SkinnedPointCase() {
+    p.x = Eigen::Vector3d(0.2, -0.1, 0.3);
+    p.bones = {1, 3};
+    p.weights = {0.7, 0.3};
+  }
+  Eigen::Vector2d Pixel() const {
+    const Eigen::Vector3d cam = Apply(g, 0.7 * Apply(j1, p.x) + 0.3 * Apply(j3, p.x));
+    return Eigen::Vector2d(k[0] * cam.x() / cam.z() + k[2], k[1] * cam.y() / cam.z() + k[3]);
+  }
+};
+
 // The pixel residual against the blend, root pose and projection computed
 // directly; a change of one bone block moves it as predicted.
 TEST(BoneRegistration, SkinnedPixelResidualIsTheProjectedBlendMinusTheTarget) {
-  SkinnedPoint p;
-  p.x = Eigen::Vector3d(0.2, -0.1, 0.3);
-  p.bones = {1, 3};
-  p.weights = {0.7, 0.3};
-  const Pose j1 = TurnAbout(Eigen::Vector3d(0.1, 0.4, -0.2), Eigen::Vector3d(0, 0.1, 0),
-                            Eigen::Vector3d(0.05, 0, 0.02));
-  const Pose j3 = TurnAbout(Eigen::Vector3d(-0.3, 0.1, 0.2), Eigen::Vector3d(0.3, 0, 0.1),
-                            Eigen::Vector3d(0, -0.04, 0));
-  const Pose g = PoseFromAngleAxis(Eigen::Vector3d(0.2, -0.5, 0.1), Eigen::Vector3d(0.1, 0, 3));
-  const Eigen::Vector4d k(120, 110, 64, 60);
+  const SkinnedPointCase c;
+  const SkinnedPoint& p = c.p;
+  const Pose &j1 = c.j1, &j3 = c.j3, &g = c.g;
+  const Eigen::Vector4d& k = c.k;
   const Eigen::Vector2d target(70.5, 55.5);
   const auto cost = MakeSkinnedPixelCostFunction(p, g, k, target);
   ASSERT_EQ(cost->num_residuals(), 2);
   ASSERT_EQ(cost->parameter_block_sizes().size(), 2u);
-  const Eigen::Vector3d blend = 0.7 * Apply(j1, p.x) + 0.3 * Apply(j3, p.x);
-  const Eigen::Vector3d cam = Apply(g, blend);
-  const Eigen::Vector2d uv(k[0] * cam.x() / cam.z() + k[2], k[1] * cam.y() / cam.z() + k[3]);
+  const Eigen::Vector2d uv = c.Pixel();
   const std::vector<double> r = Evaluate(*cost, {j1.data(), j3.data()});
   EXPECT_NEAR(r[0], uv.x() - target.x(), 1e-10);
   EXPECT_NEAR(r[1], uv.y() - target.y(), 1e-10);
@@ -100,16 +114,10 @@ TEST(BoneRegistration, MaskOutsideDistanceIsZeroOnObjectAndIgnoredPixels) {
 }
 
 TEST(BoneRegistration, SkinnedMaskResidualReadsTheDistanceImageAtThePixel) {
-  SkinnedPoint p;
-  p.x = Eigen::Vector3d(0.2, -0.1, 0.3);
-  p.bones = {1, 3};
-  p.weights = {0.7, 0.3};
-  const Pose j1 = TurnAbout(Eigen::Vector3d(0.1, 0.4, -0.2), Eigen::Vector3d(0, 0.1, 0),
-                            Eigen::Vector3d(0.05, 0, 0.02));
-  const Pose j3 = TurnAbout(Eigen::Vector3d(-0.3, 0.1, 0.2), Eigen::Vector3d(0.3, 0, 0.1),
-                            Eigen::Vector3d(0, -0.04, 0));
-  const Pose g = PoseFromAngleAxis(Eigen::Vector3d(0.2, -0.5, 0.1), Eigen::Vector3d(0.1, 0, 3));
-  const Eigen::Vector4d k(120, 110, 64, 60);
+  const SkinnedPointCase c;
+  const SkinnedPoint& p = c.p;
+  const Pose &j1 = c.j1, &j3 = c.j3, &g = c.g;
+  const Eigen::Vector4d& k = c.k;
   // A linear image, which bicubic (Catmull-Rom) interpolation reproduces
   // exactly away from the border: D(row, col) = 2 col + 0.5 row.
   cv::Mat d(100, 120, CV_32FC1);
@@ -119,8 +127,7 @@ TEST(BoneRegistration, SkinnedMaskResidualReadsTheDistanceImageAtThePixel) {
   const auto cost = MakeSkinnedMaskCostFunction(p, g, k, d);
   ASSERT_EQ(cost->num_residuals(), 1);
   ASSERT_EQ(cost->parameter_block_sizes().size(), 2u);
-  const Eigen::Vector3d cam = Apply(g, 0.7 * Apply(j1, p.x) + 0.3 * Apply(j3, p.x));
-  const Eigen::Vector2d uv(k[0] * cam.x() / cam.z() + k[2], k[1] * cam.y() / cam.z() + k[3]);
+  const Eigen::Vector2d uv = c.Pixel();
   ASSERT_GT(uv.x(), 10);
   ASSERT_GT(uv.y(), 10);
   const std::vector<double> r = Evaluate(*cost, {j1.data(), j3.data()});
