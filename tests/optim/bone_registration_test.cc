@@ -200,6 +200,13 @@ TEST(BoneRegistration, VisiblePointsHideWhatIsBehindInTheSamePixel) {
 // Two bones along a bar; bone 1 turned and moved at frame t. From exact
 // matches (each vertex's true pixel) the fit started at the identity
 // recovers the transforms: the pixels to 0.01 px, bone 1's turn to 0.1 deg.
+// B bone transforms J_b^t at the identity (kPoseSize each).
+std::vector<double> IdentityBoneTransforms(int B) {
+  std::vector<double> j(kPoseSize * B);
+  for (int b = 0; b < B; ++b) PoseSetIdentity(j.data() + kPoseSize * b);
+  return j;
+}
+
 // Two bones at x = -0.4 and 0.4 and a bar of n random points along them
 // with the Gaussian bones' skinning weights.
 struct BarScene {
@@ -261,8 +268,7 @@ TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
   config.rest_weight = 0.0;    // term is not exact for a moved joint
   config.joint_weight = 0.0;
   config.iterations = 50;
-  std::vector<double> bones_t(kPoseSize * B);
-  for (int b = 0; b < B; ++b) PoseSetIdentity(bones_t.data() + kPoseSize * b);
+  std::vector<double> bones_t = IdentityBoneTransforms(B);
   const FrameRegistration fit =
       RegisterFrameBones(proxy, matches, B, bones.data(), g, k, nullptr, config, bones_t.data());
   EXPECT_GT(fit.median_match_px_before, 5.0);
@@ -276,8 +282,7 @@ TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
   EXPECT_LT(q.angularDistance(q_true), 0.1 * kDeg);
 
   // With priors and no matches the fit stays at the rest pose.
-  std::vector<double> rest(kPoseSize * B);
-  for (int b = 0; b < B; ++b) PoseSetIdentity(rest.data() + kPoseSize * b);
+  std::vector<double> rest = IdentityBoneTransforms(B);
   const FrameRegistration none = RegisterFrameBones(proxy, FrameMatches{}, B, bones.data(), g, k,
                                                     nullptr, BoneRegistrationConfig{}, rest.data());
   EXPECT_EQ(none.final_cost, 0.0);
@@ -323,8 +328,7 @@ TEST(BoneRegistration, MaskTermPullsABoneNoMatchSeesIntoTheSilhouette) {
   config.rest_weight = 0.0;
   config.joint_weight = 0.0;
   config.iterations = 50;
-  std::vector<double> bones_t(kPoseSize * B);
-  for (int b = 0; b < B; ++b) PoseSetIdentity(bones_t.data() + kPoseSize * b);
+  std::vector<double> bones_t = IdentityBoneTransforms(B);
   // No matches at all: the silhouette alone brings every mask point inside
   // (cost 1.42 -> 1e-5 when written). It only asks the points to fall
   // inside, not to cover the mask, so the bone may also fold toward the
@@ -339,8 +343,7 @@ TEST(BoneRegistration, MaskTermPullsABoneNoMatchSeesIntoTheSilhouette) {
   EXPECT_GT(turn, 20 * kDeg);
   EXPECT_LT(RotationAngleBetween(bones_t.data(), PoseIdentity().data()), turn);
   // Off (the default weight 0), or without a distance image: no change.
-  std::vector<double> still(kPoseSize * B);
-  for (int b = 0; b < B; ++b) PoseSetIdentity(still.data() + kPoseSize * b);
+  std::vector<double> still = IdentityBoneTransforms(B);
   config.mask_weight = 0.0;
   EXPECT_EQ(RegisterFrameBones(proxy, FrameMatches{}, B, bones.data(), g, k, nullptr, config,
                                still.data(), &distance)
