@@ -92,6 +92,7 @@ void VisitFields(V& v, LmConfig& o) {
 template <class V>
 void VisitFields(V& v, SamplingConfig& o) {
   v("foreground_fraction", o.foreground_fraction);
+  v("boundary_fraction", o.boundary_fraction);
   v("active_fraction", o.active_fraction);
   v("importance_depth", o.importance_depth);
   v("near_far_margin", o.near_far_margin);
@@ -658,6 +659,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
 
   const std::string g = p + ".sampling";
   c.Fraction(g + ".foreground_fraction", s.sampling.foreground_fraction);
+  c.Fraction(g + ".boundary_fraction", s.sampling.boundary_fraction);
+  if (s.sampling.foreground_fraction + s.sampling.boundary_fraction > 1.0) {
+    c.Fail(g + ".boundary_fraction", "expected <= 1 - sampling.foreground_fraction (",
+           1.0 - s.sampling.foreground_fraction, "), got ", s.sampling.boundary_fraction);
+  }
   c.Fraction(g + ".active_fraction", s.sampling.active_fraction);
   c.NonNegative(g + ".near_far_margin", s.sampling.near_far_margin);
   c.NonNegative(g + ".clip_margin", s.sampling.clip_margin);
@@ -671,9 +677,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Positive(g + ".match_grid_points", s.sampling.match_grid_points);
   c.Positive(g + ".match_top_k", s.sampling.match_top_k);
   c.NonNegative(g + ".frames_per_batch", s.sampling.frames_per_batch);
-  if (s.sampling.unbiased_silhouette && !(s.sampling.foreground_fraction < 1.0)) {
+  if (s.sampling.unbiased_silhouette &&
+      !(s.sampling.foreground_fraction + s.sampling.boundary_fraction < 1.0)) {
     c.Fail(g + ".unbiased_silhouette",
-           "needs sampling.foreground_fraction < 1 (background pixels are never drawn at 1)");
+           "needs sampling.foreground_fraction + sampling.boundary_fraction < 1 (most background "
+           "pixels are never drawn at 1)");
   }
   if (s.sampling.match_top_k > s.sampling.match_grid_points) {
     c.Fail(g + ".match_top_k", "expected <= sampling.match_grid_points (",
@@ -693,9 +701,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Fraction(h + ".root_free_from", s.schedule.root_free_from);
   c.NonNegative(h + ".unbiased_silhouette_from", s.schedule.unbiased_silhouette_from);
   c.NonNegative(h + ".neus_from", s.schedule.neus_from);
-  if (s.schedule.unbiased_silhouette_from < 1.0 && !(s.sampling.foreground_fraction < 1.0)) {
+  if (s.schedule.unbiased_silhouette_from < 1.0 &&
+      !(s.sampling.foreground_fraction + s.sampling.boundary_fraction < 1.0)) {
     c.Fail(h + ".unbiased_silhouette_from",
-           "needs sampling.foreground_fraction < 1 (background pixels are never drawn at 1)");
+           "needs sampling.foreground_fraction + sampling.boundary_fraction < 1 (most background "
+           "pixels are never drawn at 1)");
   }
 
   const std::string q = p + ".pose_solve";

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 #include "banmo/util/logging.h"
 
@@ -9,18 +10,35 @@ namespace banmo {
 
 RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
   object_pixels_.resize(dataset.videos.size());
+  boundary_pixels_.resize(dataset.videos.size());
+  in_boundary_.resize(dataset.videos.size());
+  const cv::Mat kernel = cv::getStructuringElement(
+      cv::MORPH_RECT, cv::Size(2 * kBoundaryBandPx + 1, 2 * kBoundaryBandPx + 1));
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
     const Video& video = dataset.videos[v];
     object_pixels_[v].resize(video.frames.size());
+    boundary_pixels_[v].resize(video.frames.size());
+    in_boundary_[v].resize(video.frames.size());
     for (size_t t = 0; t < video.frames.size(); ++t) {
       const Frame& f = video.frames[t];
       if (f.skip) continue;
       frames_.push_back({static_cast<int>(v), static_cast<int>(t)});
+      // Edge band: object pixels near background and background pixels
+      // near the object (ignored pixels are neither).
+      const cv::Mat object = f.mask == kMaskObject, background = f.mask == kMaskBackground;
+      cv::Mat near_object, near_background;
+      cv::dilate(object, near_object, kernel);
+      cv::dilate(background, near_background, kernel);
+      cv::Mat& band = in_boundary_[v][t];
+      band = (object & near_background) | (background & near_object);
       std::vector<int>& pixels = object_pixels_[v][t];
+      std::vector<int>& edge = boundary_pixels_[v][t];
       for (int y = 0; y < f.mask.rows; ++y) {
         const unsigned char* row = f.mask.ptr<unsigned char>(y);
+        const unsigned char* in_band = band.ptr<unsigned char>(y);
         for (int x = 0; x < f.mask.cols; ++x) {
           if (row[x] == kMaskObject) pixels.push_back(y * f.mask.cols + x);
+          if (in_band[x] != 0) edge.push_back(y * f.mask.cols + x);
         }
       }
     }
@@ -67,7 +85,7 @@ Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
     ray.has_feature = true;
   }
   if (sampling.unbiased_silhouette && ray.mask >= 0.0) {
-    ray.silhouette_weight = PixelWeight(v, t, ray.mask >= 0.5, sampling);
+    ray.silhouette_weight = PixelWeight(v, t, x, y, sampling);
   }
   double near, far;
   const Pose camera_from_root = model.RootPose(v, t);
@@ -152,16 +170,25 @@ std::vector<Ray> RaySampler::SampleFrame(int video, int frame, int count, int sa
 }
 
 // A ray of frame (v, t): inside the mask with probability
-// sampling.foreground_fraction, else uniform over the image.
+// sampling.foreground_fraction, in the edge band with probability
+// sampling.boundary_fraction, else uniform over the image.
 Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfig& sampling,
                           const Model& model, const Eigen::AlignedBox3d& bounds,
                           std::mt19937* rng) const {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const Frame& f = dataset_.videos[v].frames[t];
   const std::vector<int>& pixels = object_pixels_[v][t];
+  const std::vector<int>& edge = boundary_pixels_[v][t];
   int x, y;
-  if (!pixels.empty() && unit(*rng) < sampling.foreground_fraction) {
+  // A frame without object pixels has no edge band either: every draw is
+  // uniform (and the random stream the same as before the band existed).
+  const double u = pixels.empty() ? 1.0 : unit(*rng);
+  if (u < sampling.foreground_fraction) {
     const int p = pixels[std::uniform_int_distribution<int>(0, pixels.size() - 1)(*rng)];
+    x = p % f.mask.cols;
+    y = p / f.mask.cols;
+  } else if (!edge.empty() && u < sampling.foreground_fraction + sampling.boundary_fraction) {
+    const int p = edge[std::uniform_int_distribution<int>(0, edge.size() - 1)(*rng)];
     x = p % f.mask.cols;
     y = p / f.mask.cols;
   } else {
@@ -171,15 +198,20 @@ Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfi
   return MakeRay(v, t, x, y, samples_per_ray, sampling, model, bounds, rng);
 }
 
-double RaySampler::PixelWeight(int video, int frame, bool object,
+double RaySampler::PixelWeight(int video, int frame, int x, int y,
                                const SamplingConfig& sampling) const {
   const Frame& f = dataset_.videos[video].frames[frame];
   const double n = static_cast<double>(f.mask.rows) * f.mask.cols;
   const double n_object = static_cast<double>(object_pixels_[video][frame].size());
-  const double fg = sampling.foreground_fraction;
-  if (n_object == 0.0) return 1.0;  // every draw is uniform
-  CHECK_LT(fg, 1.0) << "no pixel weight for foreground_fraction 1";
-  return object ? 1.0 / (fg * n / n_object + 1.0 - fg) : 1.0 / (1.0 - fg);
+  const double n_edge = static_cast<double>(boundary_pixels_[video][frame].size());
+  // A part with no pixels falls back to the uniform draw (RandomRay).
+  const double fg = n_object > 0 ? sampling.foreground_fraction : 0.0;
+  const double fe = n_edge > 0 ? sampling.boundary_fraction : 0.0;
+  CHECK_LT(fg + fe, 1.0) << "no pixel weight when no ray is drawn uniformly";
+  double density = 1.0 - fg - fe;  // N p(pixel)
+  if (f.mask.at<unsigned char>(y, x) == kMaskObject) density += fg * n / n_object;
+  if (in_boundary_[video][frame].at<unsigned char>(y, x) != 0) density += fe * n / n_edge;
+  return 1.0 / density;
 }
 
 void RaySampler::RecordErrors(const std::vector<Ray>& rays, const std::vector<double>& errors) {

@@ -330,6 +330,13 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).lm.iterations_per_batch = 0; }},
       {"stages[1].sampling.foreground_fraction",
        [&](SolverConfig* c) { S(c).sampling.foreground_fraction = 1.1; }},
+      {"stages[1].sampling.boundary_fraction",
+       [&](SolverConfig* c) { S(c).sampling.boundary_fraction = -0.1; }},
+      {"stages[1].sampling.boundary_fraction",
+       [&](SolverConfig* c) {
+         S(c).sampling.foreground_fraction = 0.6;
+         S(c).sampling.boundary_fraction = 0.5;
+       }},
       {"stages[1].sampling.active_fraction",
        [&](SolverConfig* c) { S(c).sampling.active_fraction = -0.1; }},
       {"stages[1].sampling.near_far_margin",
@@ -352,6 +359,12 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) {
          S(c).sampling.unbiased_silhouette = true;
          S(c).sampling.foreground_fraction = 1.0;
+       }},
+      {"stages[1].sampling.unbiased_silhouette",  // no uniform draws left
+       [&](SolverConfig* c) {
+         S(c).sampling.unbiased_silhouette = true;
+         S(c).sampling.foreground_fraction = 0.5;
+         S(c).sampling.boundary_fraction = 0.5;
        }},
       {"stages[1].sampling.match_top_k",
        [&](SolverConfig* c) { S(c).sampling.match_top_k = S(c).sampling.match_grid_points + 1; }},
@@ -706,6 +719,7 @@ SolverConfig EveryFieldChanged() {
               2.5,     3.5,  4.5,   12,    5};
     s.lm = {9, 123.0, 4.5e7, LinearSolverType::kIterativeSchur, 2};
     s.sampling.foreground_fraction = 0.7;
+    s.sampling.boundary_fraction = 0.2;
     s.sampling.active_fraction = 0.15;
     s.sampling.importance_depth = true;
     s.sampling.near_far_margin = 0.33;
@@ -854,6 +868,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.lm.linear_solver, t.lm.linear_solver);
     EXPECT_EQ(s.lm.iterations_per_batch, t.lm.iterations_per_batch);
     EXPECT_EQ(s.sampling.foreground_fraction, t.sampling.foreground_fraction);
+    EXPECT_EQ(s.sampling.boundary_fraction, t.sampling.boundary_fraction);
     EXPECT_EQ(s.sampling.active_fraction, t.sampling.active_fraction);
     EXPECT_EQ(s.sampling.importance_depth, t.sampling.importance_depth);
     EXPECT_EQ(s.sampling.near_far_margin, t.sampling.near_far_margin);

@@ -129,43 +129,103 @@ TEST_F(RaySamplerTest, FramesPerBatchSpreadsTheRaysOverThatManyFrames) {
 
 // sampling.unbiased_silhouette: over many draws of one frame, the
 // importance-weighted mean of any pixel quantity is its mean over all the
-// frame's pixels (here the object indicator and the known-mask indicator),
-// while the unweighted mean favours the object pixels.
+// frame's pixels (here the object indicator, the known-mask indicator and
+// the edge-band indicator), while the unweighted mean favours the pixels
+// the sampler draws more often; with and without the edge band.
 TEST_F(RaySamplerTest, UnbiasedSilhouetteWeightsUndoTheObjectPreference) {
-  SamplingConfig sampling;
-  sampling.unbiased_silhouette = true;
-  sampling.foreground_fraction = 0.6;
   const auto [v, t] = sampler.UsableFrames().front();
   const cv::Mat& mask = data.videos[v].frames[t].mask;
   const double n = static_cast<double>(mask.total());
   const double object_share = cv::countNonZero(mask == kMaskObject) / n;
   const double known_share = object_share + cv::countNonZero(mask == kMaskBackground) / n;
+  std::set<int> band(sampler.BoundaryPixels(v, t).begin(), sampler.BoundaryPixels(v, t).end());
+  const double band_share = band.size() / n;
   ASSERT_GT(object_share, 0.01);
   ASSERT_LT(object_share, 0.5);
-  std::mt19937 rng(11);
-  const int count = 40000;
-  const std::vector<Ray> rays =
-      sampler.SampleFrame(v, t, count, 2, sampling, *model, kBounds, &rng);
-  double weighted_object = 0, weighted_known = 0, unweighted_object = 0;
-  for (const Ray& r : rays) {
-    if (r.mask < 0) {
-      EXPECT_EQ(r.silhouette_weight, 1.0);  // no silhouette term
-      continue;
+  ASSERT_GT(band_share, 0.01);
+  ASSERT_LT(band_share, 0.5);
+  for (const double boundary_fraction : {0.0, 0.3}) {
+    SCOPED_TRACE(boundary_fraction);
+    SamplingConfig sampling;
+    sampling.unbiased_silhouette = true;
+    sampling.foreground_fraction = 0.6;
+    sampling.boundary_fraction = boundary_fraction;
+    std::mt19937 rng(11);
+    const int count = 40000;
+    const std::vector<Ray> rays =
+        sampler.SampleFrame(v, t, count, 2, sampling, *model, kBounds, &rng);
+    double weighted_object = 0, weighted_known = 0, weighted_band = 0;
+    double unweighted_object = 0, unweighted_band = 0;
+    for (const Ray& r : rays) {
+      const int x = static_cast<int>(r.uv.x()), y = static_cast<int>(r.uv.y());
+      const bool in_band = band.count(y * mask.cols + x) > 0;
+      unweighted_band += in_band;
+      if (r.mask < 0) {
+        EXPECT_EQ(r.silhouette_weight, 1.0);  // no silhouette term
+        continue;
+      }
+      EXPECT_EQ(r.silhouette_weight, sampler.PixelWeight(v, t, x, y, sampling));
+      weighted_object += r.silhouette_weight * (r.mask >= 0.5);
+      weighted_known += r.silhouette_weight;
+      weighted_band += r.silhouette_weight * in_band;
+      unweighted_object += r.mask >= 0.5;
     }
-    EXPECT_EQ(r.silhouette_weight, sampler.PixelWeight(v, t, r.mask >= 0.5, sampling));
-    weighted_object += r.silhouette_weight * (r.mask >= 0.5);
-    weighted_known += r.silhouette_weight;
-    unweighted_object += r.mask >= 0.5;
+    // Standard errors at 40,000 draws are below 0.008 for these indicators
+    // (weights <= 1 / (1 - 0.6 - 0.3) = 10); 0.03 is about 4 of them.
+    EXPECT_NEAR(weighted_object / count, object_share, 0.03);
+    EXPECT_NEAR(weighted_known / count, known_share, 0.03);
+    EXPECT_NEAR(weighted_band / count, band_share, 0.03);
+    EXPECT_GT(unweighted_object / count, object_share + 0.4);
+    // The band's share of the draws: its fraction plus its share of the
+    // other two parts' (object pixels in the band, uniform draws on it).
+    EXPECT_GT(unweighted_band / count, boundary_fraction + band_share * 0.1 - 0.02);
   }
-  // Standard errors at 40,000 draws are below 0.004 for these indicators
-  // (weights <= 1 / (1 - 0.6) = 2.5); 0.015 is about 4 of them.
-  EXPECT_NEAR(weighted_object / count, object_share, 0.015);
-  EXPECT_NEAR(weighted_known / count, known_share, 0.015);
-  EXPECT_GT(unweighted_object / count, object_share + 0.4);
   // Off: every weight is 1.
-  sampling.unbiased_silhouette = false;
+  SamplingConfig sampling;
+  std::mt19937 rng(12);
   for (const Ray& r : sampler.SampleFrame(v, t, 100, 2, sampling, *model, kBounds, &rng)) {
     EXPECT_EQ(r.silhouette_weight, 1.0);
+  }
+}
+
+// The edge band: every band pixel has a pixel of the other class (object /
+// background) within kBoundaryBandPx (chessboard), every other known pixel
+// none; all rays drawn with boundary_fraction 1 lie on it.
+TEST_F(RaySamplerTest, BoundaryRaysLieOnTheMaskEdge) {
+  const int r = RaySampler::kBoundaryBandPx;
+  for (const auto& [v, t] : sampler.UsableFrames()) {
+    const cv::Mat& mask = data.videos[v].frames[t].mask;
+    const std::vector<int>& band = sampler.BoundaryPixels(v, t);
+    ASSERT_FALSE(band.empty());
+    const std::set<int> in_band(band.begin(), band.end());
+    for (int y = 0; y < mask.rows; ++y) {
+      for (int x = 0; x < mask.cols; ++x) {
+        const unsigned char m = mask.at<unsigned char>(y, x);
+        bool other_near = false;
+        for (int dy = -r; dy <= r; ++dy) {
+          for (int dx = -r; dx <= r; ++dx) {
+            const int yy = y + dy, xx = x + dx;
+            if (yy < 0 || yy >= mask.rows || xx < 0 || xx >= mask.cols) continue;
+            const unsigned char o = mask.at<unsigned char>(yy, xx);
+            other_near = other_near || (m == kMaskObject && o == kMaskBackground) ||
+                         (m == kMaskBackground && o == kMaskObject);
+          }
+        }
+        ASSERT_EQ(in_band.count(y * mask.cols + x) > 0, other_near) << x << ", " << y;
+      }
+    }
+  }
+  SamplingConfig sampling;
+  sampling.foreground_fraction = 0.0;
+  sampling.boundary_fraction = 1.0;
+  std::mt19937 rng(3);
+  const auto [v, t] = sampler.UsableFrames().front();
+  const std::vector<int>& band = sampler.BoundaryPixels(v, t);
+  const std::set<int> in_band(band.begin(), band.end());
+  const int width = data.videos[v].frames[t].mask.cols;
+  for (const Ray& ray : sampler.SampleFrame(v, t, 500, 2, sampling, *model, kBounds, &rng)) {
+    EXPECT_TRUE(in_band.count(static_cast<int>(ray.uv.y()) * width + static_cast<int>(ray.uv.x())) >
+                0);
   }
 }
 

@@ -117,9 +117,14 @@ struct LmConfig {
 
 struct SamplingConfig {
   double foreground_fraction = 0.5;  // fraction of rays drawn inside the mask
-  double active_fraction = 0.0;      // fraction drawn from the error cache (active sampling)
-  bool importance_depth = false;     // second pass of samples around the surface
-  double near_far_margin = 0.2;      // +-20 % around the canonical bounds' depth range
+  // Fraction drawn from the pixels within RaySampler::kBoundaryBandPx of
+  // the mask's edge (object pixels with a background pixel that near, and
+  // background pixels with an object pixel that near), where the fitted
+  // silhouette's errors sit; foreground_fraction + boundary_fraction <= 1.
+  double boundary_fraction = 0.0;
+  double active_fraction = 0.0;   // fraction drawn from the error cache (active sampling)
+  bool importance_depth = false;  // second pass of samples around the surface
+  double near_far_margin = 0.2;   // +-20 % around the canonical bounds' depth range
   // Each ray's samples span only its part inside the canonical bounds
   // widened by clip_margin times their largest side (ClipDepthsToBox,
   // volume/ray_samples.h), not the frame's whole near-far range.

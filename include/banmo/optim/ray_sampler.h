@@ -1,6 +1,6 @@
 // Minibatches of pixel rays drawn from a dataset (docs/solver.md):
-// a fresh random set per batch, part inside the object mask, part uniform
-// over the image, part "active" (near pixels whose residuals were large in
+// a fresh random set per batch, part inside the object mask, part near its
+// edge, part uniform over the image, part "active" (near pixels whose residuals were large in
 // earlier batches), each with a random flow partner frame and stratified
 // depth samples between the frame's near and far planes.
 #pragma once
@@ -20,9 +20,16 @@ namespace banmo {
 
 class RaySampler {
  public:
-  // Indexes the object pixels of every usable frame (skipped frames are
-  // never drawn).
+  // Indexes the object and mask-edge pixels of every usable frame (skipped
+  // frames are never drawn).
   explicit RaySampler(const Dataset& dataset);
+
+  // Half-width of the band sampling.boundary_fraction draws from: pixels
+  // within this many pixels (chessboard distance) of a pixel of the other
+  // class (object / background). The rendered silhouettes' errors sit
+  // there: on the default scene 81 % of the wrong pixels of `banmo render`
+  // lie within 1 px of the other mask, 97 % within 2.
+  static constexpr int kBoundaryBandPx = 2;
 
   // Draws `count` rays with `samples_per_ray` depth samples each.
   std::vector<Ray> Sample(int count, int samples_per_ray, const SamplingConfig& sampling,
@@ -36,15 +43,21 @@ class RaySampler {
                                const Eigen::AlignedBox3d& canonical_bounds,
                                std::mt19937* rng) const;
 
-  // Importance weight of a pixel of frame (video, frame) drawn by the
-  // sampler's mixture (`foreground_fraction` inside the mask, the rest
-  // uniform over the image): (1 / N) / p(pixel), N the frame's pixel count.
-  // A ray's loss times this weight has the expectation of the same loss
-  // over pixels drawn uniformly, and the weights of a frame's draws average
-  // 1. Object pixels: 1 / (f N / N_object + 1 - f); others: 1 / (1 - f).
+  // Importance weight of pixel (x, y) of frame (video, frame) drawn by the
+  // sampler's mixture (`foreground_fraction` f inside the mask,
+  // `boundary_fraction` e in the edge band, the rest uniform over the
+  // image): (1 / N) / p(pixel), N the frame's pixel count. A ray's loss
+  // times this weight has the expectation of the same loss over pixels
+  // drawn uniformly, and the weights of a frame's draws average 1:
+  //   1 / (f N / N_object [object] + e N / N_band [band] + 1 - f - e).
   // Active rays take their pixel's weight too (an approximation: the
   // error cache's emphasis stays).
-  double PixelWeight(int video, int frame, bool object, const SamplingConfig& sampling) const;
+  double PixelWeight(int video, int frame, int x, int y, const SamplingConfig& sampling) const;
+
+  // The frame's edge-band pixels (y * width + x, increasing).
+  const std::vector<int>& BoundaryPixels(int video, int frame) const {
+    return boundary_pixels_[video][frame];
+  }
 
   // The usable (not skipped) frames, as (video, frame), in dataset order.
   std::vector<std::pair<int, int>> UsableFrames() const {
@@ -84,7 +97,9 @@ class RaySampler {
 
   const Dataset& dataset_;
   std::vector<FrameRef> frames_;
-  std::vector<std::vector<std::vector<int>>> object_pixels_;  // [video][frame] -> y * width + x
+  std::vector<std::vector<std::vector<int>>> object_pixels_;    // [video][frame] -> y * width + x
+  std::vector<std::vector<std::vector<int>>> boundary_pixels_;  // the same, edge band
+  std::vector<std::vector<cv::Mat>> in_boundary_;               // CV_8UC1, 1 on the band
   std::vector<CachedPixel> error_cache_;
 };
 
