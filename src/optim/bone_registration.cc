@@ -372,10 +372,12 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
                                      const Pose& camera_from_root,
                                      const Eigen::Vector4d& intrinsics, const double* previous,
                                      const BoneRegistrationConfig& config, double* bones_t,
-                                     const cv::Mat* mask_distance) {
+                                     const FrameSilhouette* silhouette) {
   CHECK_GT(num_bones, 0);
   const int B = num_bones;
-  ceres::Problem problem;
+  ceres::Problem::Options problem_options;
+  problem_options.enable_fast_removal = true;  // the coverage ties are remade each round
+  ceres::Problem problem(problem_options);
   auto block = [&](int b) { return bones_t + kPoseSize * b; };
   for (int b = 0; b < B; ++b) {
     problem.AddParameterBlock(
@@ -399,6 +401,7 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
           loss, blocks));
     }
   }
+  const cv::Mat* mask_distance = silhouette != nullptr ? &silhouette->outside_distance : nullptr;
   if (config.mask_weight > 0 && mask_distance != nullptr && !mask_distance->empty() &&
       !proxy.points.empty()) {
     // Every stride-th fitted vertex (the proxy's are a random subset).
@@ -456,18 +459,74 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
   };
   FrameRegistration out;
   out.median_match_px_before = median_match_px();
+  const bool coverage = config.coverage_weight > 0 && silhouette != nullptr &&
+                        !silhouette->object_pixels.empty() && !proxy.points.empty();
+  const int rounds = coverage ? config.coverage_rounds : 1;
   ceres::Solver::Options options;
-  options.max_num_iterations = config.iterations;
+  options.max_num_iterations = std::max(1, (config.iterations + rounds - 1) / rounds);
   options.linear_solver_type = ceres::DENSE_QR;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  out.initial_cost = summary.initial_cost;
-  out.final_cost = summary.final_cost;
-  out.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  std::vector<ceres::ResidualBlockId> coverage_blocks;
+  for (int round = 0; round < rounds; ++round) {
+    if (coverage) {
+      // 2D ICP: each pixel tied to the nearest projection under the
+      // current fit (a fresh loss each round: removing a round's blocks
+      // deletes the loss they share).
+      for (ceres::ResidualBlockId id : coverage_blocks) problem.RemoveResidualBlock(id);
+      coverage_blocks.clear();
+      const std::vector<Eigen::Vector2d>& pixels = silhouette->object_pixels;
+      std::vector<Eigen::Vector2d> projected(proxy.points.size());
+      for (size_t i = 0; i < proxy.points.size(); ++i) {
+        const SkinnedPoint& p = proxy.points[i];
+        std::vector<const double*> blocks;
+        for (int b : p.bones) blocks.push_back(block(b));
+        ProjectSkinnedPoint(p, camera_from_root, intrinsics, blocks.data(), projected[i].data());
+      }
+      auto* loss =
+          new ceres::ScaledLoss(new ceres::HuberLoss(config.huber_px),
+                                config.coverage_weight / pixels.size(), ceres::TAKE_OWNERSHIP);
+      for (const Eigen::Vector2d& q : pixels) {
+        int nearest = -1;
+        double best = std::numeric_limits<double>::infinity();
+        for (size_t i = 0; i < projected.size(); ++i) {
+          const double d = (projected[i] - q).squaredNorm();
+          if (d < best) best = d, nearest = static_cast<int>(i);
+        }
+        const SkinnedPoint& p = proxy.points[nearest];
+        std::vector<double*> blocks;
+        for (int b : p.bones) blocks.push_back(block(b));
+        coverage_blocks.push_back(problem.AddResidualBlock(
+            MakeSkinnedPixelCostFunction(p, camera_from_root, intrinsics, q).release(), loss,
+            blocks));
+      }
+    }
+    ceres::Solver::Summary summary;
+    ceres::Solve(options, &problem, &summary);
+    if (round == 0) out.initial_cost = summary.initial_cost;
+    out.final_cost = summary.final_cost;
+    out.iterations += static_cast<int>(summary.iterations.size()) - 1;
+  }
   out.median_match_px_after = median_match_px();
   return out;
+}
+
+std::vector<Eigen::Vector2d> SampleObjectPixels(const cv::Mat& mask, int count,
+                                                std::uint32_t seed) {
+  CHECK_EQ(mask.type(), CV_8UC1);
+  std::vector<Eigen::Vector2d> object;
+  for (int y = 0; y < mask.rows; ++y) {
+    const unsigned char* row = mask.ptr<unsigned char>(y);
+    for (int x = 0; x < mask.cols; ++x) {
+      if (row[x] == kMaskObject) object.emplace_back(x + 0.5, y + 0.5);
+    }
+  }
+  if (static_cast<int>(object.size()) > count) {
+    std::mt19937 rng(seed);
+    std::shuffle(object.begin(), object.end(), rng);
+    object.resize(count);
+  }
+  return object;
 }
 
 std::string BoneRegistrationReport::Describe() const {
@@ -538,10 +597,15 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
         const FrameMatches matches = MatchFrameFeatures(
             embedding, f, config.match_pixels, seed + 7919u * static_cast<std::uint32_t>(k + 1));
         if (previous != nullptr) std::copy(previous, previous + kPoseSize * B, bones_t);
-        const cv::Mat distance = config.mask_weight > 0 ? MaskOutsideDistance(f.mask) : cv::Mat();
+        FrameSilhouette silhouette;
+        if (config.mask_weight > 0) silhouette.outside_distance = MaskOutsideDistance(f.mask);
+        if (config.coverage_weight > 0) {
+          silhouette.object_pixels = SampleObjectPixels(
+              f.mask, config.coverage_pixels, seed + 104729u * static_cast<std::uint32_t>(k + 1));
+        }
         results[k] =
             RegisterFrameBones(proxy, matches, B, model->bones(), model->RootPose(v, t),
-                               model->video(v).intrinsics, previous, config, bones_t, &distance);
+                               model->video(v).intrinsics, previous, config, bones_t, &silhouette);
         done[k] = 1;
         previous = bones_t;
       }

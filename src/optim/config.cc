@@ -149,6 +149,9 @@ void VisitFields(V& v, BoneRegistrationConfig& o) {
   v("iterations", o.iterations);
   v("mask_weight", o.mask_weight);
   v("mask_points", o.mask_points);
+  v("coverage_weight", o.coverage_weight);
+  v("coverage_pixels", o.coverage_pixels);
+  v("coverage_rounds", o.coverage_rounds);
 }
 
 template <class V>
@@ -763,6 +766,9 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.Positive(r + ".iterations", reg.iterations);
   c.NonNegative(r + ".mask_weight", reg.mask_weight);
   c.Positive(r + ".mask_points", reg.mask_points);
+  c.NonNegative(r + ".coverage_weight", reg.coverage_weight);
+  c.Positive(r + ".coverage_pixels", reg.coverage_pixels);
+  c.Positive(r + ".coverage_rounds", reg.coverage_rounds);
 
   if (s.bone_steps_articulated && s.bone_steps_about_centres) {
     c.Fail(p + ".bone_steps_articulated",

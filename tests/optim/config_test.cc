@@ -465,6 +465,12 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).bone_registration.mask_weight = -1; }},
       {"stages[1].bone_registration.mask_points",
        [&](SolverConfig* c) { S(c).bone_registration.mask_points = 0; }},
+      {"stages[1].bone_registration.coverage_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.coverage_weight = -1; }},
+      {"stages[1].bone_registration.coverage_pixels",
+       [&](SolverConfig* c) { S(c).bone_registration.coverage_pixels = 0; }},
+      {"stages[1].bone_registration.coverage_rounds",
+       [&](SolverConfig* c) { S(c).bone_registration.coverage_rounds = 0; }},
       {"model.delta_skinning.width",
        [&](SolverConfig* c) {
          c->model.delta_skinning.enabled = true;
@@ -764,6 +770,9 @@ SolverConfig EveryFieldChanged() {
     s.bone_registration.iterations = 7 + i;
     s.bone_registration.mask_weight = 0.5 + i;
     s.bone_registration.mask_points = 200 + i;
+    s.bone_registration.coverage_weight = 1.5 + i;
+    s.bone_registration.coverage_pixels = 300 + i;
+    s.bone_registration.coverage_rounds = 4 + i;
     s.bone_steps_about_centres = i == 0;  // the two are exclusive
     s.bone_steps_articulated = i != 0;
     s.checkpoint_every = 50;
@@ -909,6 +918,9 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(r.iterations, u.iterations);
     EXPECT_EQ(r.mask_weight, u.mask_weight);
     EXPECT_EQ(r.mask_points, u.mask_points);
+    EXPECT_EQ(r.coverage_weight, u.coverage_weight);
+    EXPECT_EQ(r.coverage_pixels, u.coverage_pixels);
+    EXPECT_EQ(r.coverage_rounds, u.coverage_rounds);
     EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
     EXPECT_EQ(s.bone_steps_articulated, t.bone_steps_articulated);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);

@@ -40,6 +40,15 @@
 //              constrains the parts no match sees (a wing seen edge-on).
 //              It asks for containment, not coverage: a part no match
 //              holds may also fold toward the camera to fit (tests).
+//      coverage (coverage_weight > 0) each of coverage_pixels object
+//              pixels of the frame tied to the fitted vertex whose
+//              projection is nearest, the projection minus the pixel,
+//              Huber(huber_px), weight coverage_weight / coverage_pixels:
+//              the silhouette's counterpart of the mask term (every
+//              object pixel covered by some vertex), which unfolds what
+//              containment lets fold. The ties are remade from the fit
+//              coverage_rounds times (2D ICP; each round a Levenberg-
+//              Marquardt solve of iterations / coverage_rounds iterations).
 //
 // Deterministic: subsets and pixels are drawn from `seed`; videos run in
 // parallel, each on its own.
@@ -161,11 +170,21 @@ struct FrameMatches {
 FrameMatches MatchFrameFeatures(const Eigen::MatrixXd& embedding, const Frame& frame, int count,
                                 std::uint32_t seed);
 
+// The frame's data of the silhouette terms: either part may be empty (no
+// such term).
+struct FrameSilhouette {
+  cv::Mat outside_distance;                    // MaskOutsideDistance (mask term)
+  std::vector<Eigen::Vector2d> object_pixels;  // pixel centres (coverage term)
+};
+
+// Up to `count` object pixels of `mask` (CV_8UC1, dataset.h values), drawn
+// with `seed`, as pixel centres (x + 0.5, y + 0.5).
+std::vector<Eigen::Vector2d> SampleObjectPixels(const cv::Mat& mask, int count, std::uint32_t seed);
+
 // Step 4 for one frame: fits bones_t (kPoseSize B, in and out) from its
 // value; `previous` is the previous frame's fit (null: the identity);
-// `mask_distance` the frame's MaskOutsideDistance (null or empty: no mask
+// `silhouette` the frame's silhouette data (null: no mask or coverage
 // term).
-// Returns the final cost (Ceres' 1/2 sum of squares).
 struct FrameRegistration {
   double initial_cost = 0.0;
   double final_cost = 0.0;
@@ -178,7 +197,7 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
                                      const Pose& camera_from_root,
                                      const Eigen::Vector4d& intrinsics, const double* previous,
                                      const BoneRegistrationConfig& config, double* bones_t,
-                                     const cv::Mat* mask_distance = nullptr);
+                                     const FrameSilhouette* silhouette = nullptr);
 
 struct BoneRegistrationReport {
   bool registered = false;

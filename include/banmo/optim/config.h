@@ -223,6 +223,9 @@ struct BoneRegistrationConfig {
   int iterations = 20;              // LM iterations per frame
   double mask_weight = 0.0;         // fitted vertices pulled into the frame's mask (0 = off)
   int mask_points = 1000;           // fitted vertices of the mask term, spread over the proxy
+  double coverage_weight = 0.0;     // object pixels pulled to the nearest fitted vertex (0 = off)
+  int coverage_pixels = 500;        // object pixels of the coverage term per frame
+  int coverage_rounds = 10;         // nearest-vertex ties made this many times (LM solves)
 };
 
 // Parameter groups held constant (ceres SetParameterBlockConstant):
