@@ -133,6 +133,10 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   EXPECT_EQ(c.stages[0].schedule.bone_reinit_at, (std::vector<double>{0.2, 0.5}));
   // Bones registered after the second re-initialisation and again at 75 %.
   EXPECT_EQ(c.stages[0].bone_registration.at, (std::vector<double>{0.5, 0.75}));
+  // ... with the mask term (fitted vertices into each frame's silhouette);
+  // the coverage term stays off (its ICP rounds cost 4x the registration).
+  EXPECT_EQ(c.stages[0].bone_registration.mask_weight, 10.0);
+  EXPECT_EQ(c.stages[0].bone_registration.coverage_weight, 0.0);
   // Stage 2: 2D cycle (and a little silhouette), articulation only.
   const StageConfig& s2 = c.stages[1];
   EXPECT_GT(s2.losses[LossTerm::kCycle2d].weight, 0);
