@@ -1,8 +1,9 @@
 // Minibatches of pixel rays drawn from a dataset (docs/solver.md):
 // a fresh random set per batch, part inside the object mask, part near its
-// edge, part uniform over the image, part "active" (near pixels whose residuals were large in
-// earlier batches), each with a random flow partner frame and stratified
-// depth samples between the frame's near and far planes.
+// edge, part uniform over the image, part "active" (near pixels whose
+// residuals were large in earlier batches), each with a random flow
+// partner frame and stratified depth samples between the frame's near and
+// far planes.
 #pragma once
 
 #include <Eigen/Geometry>
