@@ -95,6 +95,143 @@ struct SkinnedMaskResidual {
   const ceres::BiCubicInterpolator<ceres::Grid2D<float, 1>> interpolator;
 };
 
+// The pixel of a skinned point (ProjectSkinnedPoint) and, when d_uv is not
+// null, its 2 x kPoseSize Jacobian with respect to each bone transform
+// (d_uv->at(k) for point.bones[k]; quaternion columns first, as the
+// parameter block). Rotations differentiate through Jet<4> on the
+// quaternion alone; the blend, the root pose and the projection by hand.
+// ProjectPoint clamps the depth at kMinProjectionDepth: there the depth's
+// column is zero, as autodiff gives.
+using PixelJacobian = Eigen::Matrix<double, 2, kPoseSize, Eigen::RowMajor>;
+Eigen::Vector2d ProjectSkinnedPointWithJacobian(const SkinnedPoint& point,
+                                                const Pose& camera_from_root,
+                                                const Eigen::Vector4d& intrinsics,
+                                                double const* const* parameters,
+                                                std::vector<PixelJacobian>* d_uv) {
+  using J4 = ceres::Jet<double, 4>;
+  const int n = static_cast<int>(point.bones.size());
+  Eigen::Vector3d blended = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Matrix<double, 3, 4>> d_q(d_uv != nullptr ? n : 0);
+  const J4 x[3] = {J4(point.x[0]), J4(point.x[1]), J4(point.x[2])};
+  for (int k = 0; k < n; ++k) {
+    const double* pose = parameters[k];
+    const double w = point.weights[k];
+    if (d_uv != nullptr) {
+      J4 q[4], z[3];
+      for (int i = 0; i < 4; ++i) q[i] = J4(pose[kPoseQw + i], i);
+      ceres::QuaternionRotatePoint(q, x, z);
+      for (int i = 0; i < 3; ++i) {
+        blended[i] += w * (z[i].a + pose[kPoseT + i]);
+        d_q[k].row(i) = z[i].v.transpose();
+      }
+    } else {
+      double z[3];
+      ceres::QuaternionRotatePoint(pose + kPoseQw, point.x.data(), z);
+      for (int i = 0; i < 3; ++i) blended[i] += w * (z[i] + pose[kPoseT + i]);
+    }
+  }
+  Eigen::Vector3d cam;
+  PoseTransformPoint(camera_from_root.data(), blended.data(), cam.data());
+  Eigen::Vector2d uv;
+  ProjectPoint(intrinsics.data(), cam.data(), uv.data());
+  if (d_uv == nullptr) return uv;
+  const bool clamped = cam.z() < kMinProjectionDepth;
+  const double z = clamped ? kMinProjectionDepth : cam.z();
+  Eigen::Matrix<double, 2, 3> d_cam;
+  d_cam << intrinsics[0] / z, 0.0, clamped ? 0.0 : -intrinsics[0] * cam.x() / (z * z), 0.0,
+      intrinsics[1] / z, clamped ? 0.0 : -intrinsics[1] * cam.y() / (z * z);
+  double rotation[9];
+  ceres::QuaternionToRotation(camera_from_root.data() + kPoseQw, rotation);  // row-major
+  const Eigen::Matrix<double, 2, 3> d_blended =
+      d_cam * Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(rotation);
+  d_uv->resize(n);
+  for (int k = 0; k < n; ++k) {
+    PixelJacobian& jk = (*d_uv)[k];
+    jk.block<2, 4>(0, kPoseQw) = point.weights[k] * d_blended * d_q[k];
+    jk.block<2, 3>(0, kPoseT) = point.weights[k] * d_blended;
+  }
+  return uv;
+}
+
+// The pixel residual (SkinnedPixelResidual) with the Jacobian above.
+class SkinnedPixelCost : public ceres::CostFunction {
+ public:
+  SkinnedPixelCost(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k,
+                   const Eigen::Vector2d& uv)
+      : point_(p), camera_from_root_(g), intrinsics_(k), target_(uv) {
+    set_num_residuals(2);
+    for (size_t i = 0; i < point_.bones.size(); ++i) {
+      mutable_parameter_block_sizes()->push_back(kPoseSize);
+    }
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    std::vector<PixelJacobian> d_uv;
+    const Eigen::Vector2d uv = ProjectSkinnedPointWithJacobian(
+        point_, camera_from_root_, intrinsics_, parameters, jacobians != nullptr ? &d_uv : nullptr);
+    residuals[0] = uv.x() - target_.x();
+    residuals[1] = uv.y() - target_.y();
+    if (jacobians == nullptr) return true;
+    for (size_t k = 0; k < d_uv.size(); ++k) {
+      if (jacobians[k] == nullptr) continue;
+      Eigen::Map<PixelJacobian> out(jacobians[k]);
+      out = d_uv[k];
+    }
+    return true;
+  }
+
+ private:
+  const SkinnedPoint point_;
+  const Pose camera_from_root_;
+  const Eigen::Vector4d intrinsics_;
+  const Eigen::Vector2d target_;
+};
+
+// The mask residual (SkinnedMaskResidual) with the Jacobian above and the
+// interpolator's gradient.
+class SkinnedMaskCost : public ceres::CostFunction {
+ public:
+  SkinnedMaskCost(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k, const cv::Mat& d)
+      : point_(p),
+        camera_from_root_(g),
+        intrinsics_(k),
+        distance_(d),
+        grid_(distance_.ptr<float>(), 0, distance_.rows, 0, distance_.cols),
+        interpolator_(grid_) {
+    set_num_residuals(1);
+    for (size_t i = 0; i < point_.bones.size(); ++i) {
+      mutable_parameter_block_sizes()->push_back(kPoseSize);
+    }
+  }
+  SkinnedMaskCost(const SkinnedMaskCost&) = delete;
+  SkinnedMaskCost& operator=(const SkinnedMaskCost&) = delete;
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    std::vector<PixelJacobian> d_uv;
+    const Eigen::Vector2d uv = ProjectSkinnedPointWithJacobian(
+        point_, camera_from_root_, intrinsics_, parameters, jacobians != nullptr ? &d_uv : nullptr);
+    double d_row = 0.0, d_col = 0.0;
+    // Pixel (i, j) holds the value at its centre (i + 0.5, j + 0.5).
+    interpolator_.Evaluate(uv.y() - 0.5, uv.x() - 0.5, residuals, &d_row, &d_col);
+    if (jacobians == nullptr) return true;
+    const Eigen::RowVector2d d_r(d_col, d_row);
+    for (size_t k = 0; k < d_uv.size(); ++k) {
+      if (jacobians[k] == nullptr) continue;
+      Eigen::Map<Eigen::Matrix<double, 1, kPoseSize>> out(jacobians[k]);
+      out = d_r * d_uv[k];
+    }
+    return true;
+  }
+
+ private:
+  const SkinnedPoint point_;
+  const Pose camera_from_root_;
+  const Eigen::Vector4d intrinsics_;
+  const cv::Mat distance_;
+  const ceres::Grid2D<float, 1> grid_;
+  const ceres::BiCubicInterpolator<ceres::Grid2D<float, 1>> interpolator_;
+};
+
 struct BonePairResidual {
   template <typename T>
   bool operator()(const T* ja, const T* jb, T* residuals) const {
@@ -197,6 +334,14 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunction(const SkinnedP
                                                                   const Eigen::Vector2d& target) {
   CHECK(!point.bones.empty());
   CHECK_EQ(point.bones.size(), point.weights.size());
+  return std::make_unique<SkinnedPixelCost>(point, camera_from_root, intrinsics, target);
+}
+
+std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunctionAutoDiff(
+    const SkinnedPoint& point, const Pose& camera_from_root, const Eigen::Vector4d& intrinsics,
+    const Eigen::Vector2d& target) {
+  CHECK(!point.bones.empty());
+  CHECK_EQ(point.bones.size(), point.weights.size());
   auto cost = std::make_unique<ceres::DynamicAutoDiffCostFunction<SkinnedPixelResidual, 14>>(
       new SkinnedPixelResidual(point, camera_from_root, intrinsics, target));
   for (size_t k = 0; k < point.bones.size(); ++k) cost->AddParameterBlock(kPoseSize);
@@ -218,6 +363,16 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunction(const SkinnedPo
                                                                  const Pose& camera_from_root,
                                                                  const Eigen::Vector4d& intrinsics,
                                                                  const cv::Mat& distance) {
+  CHECK(!point.bones.empty());
+  CHECK_EQ(point.bones.size(), point.weights.size());
+  CHECK_EQ(distance.type(), CV_32FC1);
+  CHECK(distance.isContinuous());
+  return std::make_unique<SkinnedMaskCost>(point, camera_from_root, intrinsics, distance);
+}
+
+std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunctionAutoDiff(
+    const SkinnedPoint& point, const Pose& camera_from_root, const Eigen::Vector4d& intrinsics,
+    const cv::Mat& distance) {
   CHECK(!point.bones.empty());
   CHECK_EQ(point.bones.size(), point.weights.size());
   CHECK_EQ(distance.type(), CV_32FC1);

@@ -96,6 +96,93 @@ TEST(BoneRegistration, SkinnedPixelResidualIsTheProjectedBlendMinusTheTarget) {
   EXPECT_NEAR(r[1], -1.5312148, 1e-6);
 }
 
+// Residuals and Jacobians of two cost functions on the same blocks agree:
+// values to 1e-12 (relative), Jacobian entries to 1e-9 relative to the
+// block's largest entry (both are exact derivatives in double precision;
+// the hand-written chain sums in another order).
+void ExpectSameJacobians(const ceres::CostFunction& a, const ceres::CostFunction& b,
+                         const std::vector<const double*>& blocks) {
+  ASSERT_EQ(a.num_residuals(), b.num_residuals());
+  ASSERT_EQ(a.parameter_block_sizes(), b.parameter_block_sizes());
+  const int m = a.num_residuals();
+  const size_t n = blocks.size();
+  std::vector<double> ra(m), rb(m);
+  std::vector<std::vector<double>> ja(n), jb(n);
+  std::vector<double*> pa(n), pb(n);
+  for (size_t i = 0; i < n; ++i) {
+    ja[i].assign(m * a.parameter_block_sizes()[i], 0.0);
+    jb[i].assign(m * a.parameter_block_sizes()[i], 0.0);
+    pa[i] = ja[i].data();
+    pb[i] = jb[i].data();
+  }
+  ASSERT_TRUE(a.Evaluate(blocks.data(), ra.data(), pa.data()));
+  ASSERT_TRUE(b.Evaluate(blocks.data(), rb.data(), pb.data()));
+  for (int r = 0; r < m; ++r) EXPECT_NEAR(ra[r], rb[r], 1e-12 * (1 + std::abs(rb[r])));
+  for (size_t i = 0; i < n; ++i) {
+    double scale = 0.0;
+    for (double v : jb[i]) scale = std::max(scale, std::abs(v));
+    ASSERT_GT(scale, 0.0);
+    for (size_t e = 0; e < ja[i].size(); ++e) {
+      EXPECT_NEAR(ja[i][e], jb[i][e], 1e-9 * scale) << "block " << i << " entry " << e;
+    }
+  }
+  // Some Jacobians asked for: only those are written.
+  std::vector<double> only(m * a.parameter_block_sizes()[n - 1], 0.0);
+  std::vector<double*> some(n, nullptr);
+  some[n - 1] = only.data();
+  ASSERT_TRUE(a.Evaluate(blocks.data(), ra.data(), some.data()));
+  for (size_t e = 0; e < only.size(); ++e) {
+    EXPECT_NEAR(only[e], jb[n - 1][e], 1e-9 * (1 + std::abs(jb[n - 1][e])));
+  }
+}
+
+// The hand-written Jacobians of the pixel and mask residuals against their
+// autodiff twins: the shared point, unnormalised quaternions (the
+// residuals normalise them), a point with one bone and with three, and a
+// point behind the camera's clamp depth.
+TEST(BoneRegistration, SkinnedResidualJacobiansMatchAutodiff) {
+  const SkinnedPointCase c;
+  cv::Mat d(100, 120, CV_32FC1);
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> noise(0.0f, 5.0f);
+  for (int r = 0; r < d.rows; ++r) {
+    for (int col = 0; col < d.cols; ++col) d.at<float>(r, col) = noise(rng);
+  }
+  const Eigen::Vector2d target(70.5, 55.5);
+  Pose j1 = c.j1, j3 = c.j3;
+  for (int i = 0; i < 4; ++i) {
+    j1[kPoseQw + i] *= 1.3;
+    j3[kPoseQw + i] *= 0.8;
+  }
+  ExpectSameJacobians(*MakeSkinnedPixelCostFunction(c.p, c.g, c.k, target),
+                      *MakeSkinnedPixelCostFunctionAutoDiff(c.p, c.g, c.k, target),
+                      {j1.data(), j3.data()});
+  ExpectSameJacobians(*MakeSkinnedMaskCostFunction(c.p, c.g, c.k, d),
+                      *MakeSkinnedMaskCostFunctionAutoDiff(c.p, c.g, c.k, d),
+                      {j1.data(), j3.data()});
+  SkinnedPoint one = c.p;
+  one.bones = {2};
+  one.weights = {1.0};
+  ExpectSameJacobians(*MakeSkinnedPixelCostFunction(one, c.g, c.k, target),
+                      *MakeSkinnedPixelCostFunctionAutoDiff(one, c.g, c.k, target), {j1.data()});
+  SkinnedPoint three = c.p;
+  three.bones = {0, 1, 3};
+  three.weights = {0.2, 0.5, 0.3};
+  const Pose j0 = TurnAbout(Eigen::Vector3d(0.0, -0.2, 0.3), Eigen::Vector3d(0.1, 0.1, 0.1),
+                            Eigen::Vector3d(0.0, 0.03, -0.01));
+  ExpectSameJacobians(*MakeSkinnedPixelCostFunction(three, c.g, c.k, target),
+                      *MakeSkinnedPixelCostFunctionAutoDiff(three, c.g, c.k, target),
+                      {j0.data(), j1.data(), j3.data()});
+  ExpectSameJacobians(*MakeSkinnedMaskCostFunction(three, c.g, c.k, d),
+                      *MakeSkinnedMaskCostFunctionAutoDiff(three, c.g, c.k, d),
+                      {j0.data(), j1.data(), j3.data()});
+  // Behind the camera: the depth is clamped, its column zero in both.
+  const Pose behind = PoseFromAngleAxis(Eigen::Vector3d(0.2, -0.5, 0.1), Eigen::Vector3d(0, 0, -3));
+  ExpectSameJacobians(*MakeSkinnedPixelCostFunction(c.p, behind, c.k, target),
+                      *MakeSkinnedPixelCostFunctionAutoDiff(c.p, behind, c.k, target),
+                      {j1.data(), j3.data()});
+}
+
 TEST(BoneRegistration, MaskOutsideDistanceIsZeroOnObjectAndIgnoredPixels) {
   cv::Mat mask(7, 9, CV_8UC1, cv::Scalar(kMaskBackground));
   mask(cv::Rect(2, 2, 2, 3)).setTo(kMaskObject);  // columns 2-3, rows 2-4

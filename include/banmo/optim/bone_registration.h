@@ -92,11 +92,17 @@ SkinnedPoint MakeSkinnedPoint(const Eigen::Vector3d& x, const Eigen::VectorXd& w
 // The pixel of a skinned point at frame t minus its matched pixel:
 //   r = Project(intrinsics, G^t sum_k w_k J_{b_k}^t x) - target,
 // parameter blocks: the bone transforms J_{b_k}^t (kPoseSize each) in the
-// order of point.bones. Autodiff.
+// order of point.bones. Jacobian by hand (each rotation through Jet<4> on
+// its quaternion; the registration's main cost was this residual's
+// Jet<14> passes); MakeSkinnedPixelCostFunctionAutoDiff is its autodiff
+// twin (tests).
 std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunction(const SkinnedPoint& point,
                                                                   const Pose& camera_from_root,
                                                                   const Eigen::Vector4d& intrinsics,
                                                                   const Eigen::Vector2d& target);
+std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunctionAutoDiff(
+    const SkinnedPoint& point, const Pose& camera_from_root, const Eigen::Vector4d& intrinsics,
+    const Eigen::Vector2d& target);
 
 // The mask term's image: each pixel's distance (pixels, between pixel
 // centres) to the nearest object pixel of `mask` (CV_8UC1, dataset.h
@@ -108,12 +114,17 @@ cv::Mat MaskOutsideDistance(const cv::Mat& mask);
 //   r = D(Project(intrinsics, G^t sum_k w_k J_{b_k}^t x)),
 // D bicubic-interpolated (ceres::BiCubicInterpolator, clamped at the image
 // border) with pixel (i, j)'s value at (i + 0.5, j + 0.5). Parameter blocks
-// as MakeSkinnedPixelCostFunction. Autodiff; keeps a reference to
-// `distance`'s data (cv::Mat's reference count).
+// as MakeSkinnedPixelCostFunction. Jacobian by hand as there (with the
+// interpolator's gradient); MakeSkinnedMaskCostFunctionAutoDiff is its
+// autodiff twin (tests). Keeps a reference to `distance`'s data (cv::Mat's
+// reference count).
 std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunction(const SkinnedPoint& point,
                                                                  const Pose& camera_from_root,
                                                                  const Eigen::Vector4d& intrinsics,
                                                                  const cv::Mat& distance);
+std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunctionAutoDiff(
+    const SkinnedPoint& point, const Pose& camera_from_root, const Eigen::Vector4d& intrinsics,
+    const cv::Mat& distance);
 
 // Two bones' images of one canonical point m, r = scale (J_a m - J_b m);
 // parameter blocks J_a, J_b. Autodiff.
