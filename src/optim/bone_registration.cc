@@ -153,80 +153,83 @@ Eigen::Vector2d ProjectSkinnedPointWithJacobian(const SkinnedPoint& point,
   return uv;
 }
 
-// The pixel residual (SkinnedPixelResidual) with the Jacobian above.
-class SkinnedPixelCost : public ceres::CostFunction {
- public:
-  SkinnedPixelCost(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k,
-                   const Eigen::Vector2d& uv)
-      : point_(p), camera_from_root_(g), intrinsics_(k), target_(uv) {
-    set_num_residuals(2);
+// What the pixel and mask costs share: the point, one kPoseSize block per
+// bone of it, its projection with Jacobians, and the chain rule from the
+// residual's derivative with respect to the pixel (R x 2) to the blocks.
+class SkinnedPointCost : public ceres::CostFunction {
+ protected:
+  SkinnedPointCost(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k, int residuals)
+      : point_(p), camera_from_root_(g), intrinsics_(k) {
+    set_num_residuals(residuals);
     for (size_t i = 0; i < point_.bones.size(); ++i) {
       mutable_parameter_block_sizes()->push_back(kPoseSize);
     }
   }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    std::vector<PixelJacobian> d_uv;
-    const Eigen::Vector2d uv = ProjectSkinnedPointWithJacobian(
-        point_, camera_from_root_, intrinsics_, parameters, jacobians != nullptr ? &d_uv : nullptr);
-    residuals[0] = uv.x() - target_.x();
-    residuals[1] = uv.y() - target_.y();
-    if (jacobians == nullptr) return true;
+  Eigen::Vector2d Project(double const* const* parameters, std::vector<PixelJacobian>* d_uv) const {
+    return ProjectSkinnedPointWithJacobian(point_, camera_from_root_, intrinsics_, parameters,
+                                           d_uv);
+  }
+  template <int R>
+  static void WriteJacobians(const Eigen::Matrix<double, R, 2>& d_r,
+                             const std::vector<PixelJacobian>& d_uv, double** jacobians) {
     for (size_t k = 0; k < d_uv.size(); ++k) {
       if (jacobians[k] == nullptr) continue;
-      Eigen::Map<PixelJacobian> out(jacobians[k]);
-      out = d_uv[k];
+      Eigen::Map<Eigen::Matrix<double, R, kPoseSize, Eigen::RowMajor>> out(jacobians[k]);
+      out = d_r * d_uv[k];
     }
-    return true;
   }
 
  private:
   const SkinnedPoint point_;
   const Pose camera_from_root_;
   const Eigen::Vector4d intrinsics_;
+};
+
+// The pixel residual (SkinnedPixelResidual) with the Jacobian above.
+class SkinnedPixelCost : public SkinnedPointCost {
+ public:
+  SkinnedPixelCost(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k,
+                   const Eigen::Vector2d& uv)
+      : SkinnedPointCost(p, g, k, 2), target_(uv) {}
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    std::vector<PixelJacobian> d_uv;
+    const Eigen::Vector2d uv = Project(parameters, jacobians != nullptr ? &d_uv : nullptr);
+    residuals[0] = uv.x() - target_.x();
+    residuals[1] = uv.y() - target_.y();
+    if (jacobians != nullptr) WriteJacobians<2>(Eigen::Matrix2d::Identity(), d_uv, jacobians);
+    return true;
+  }
+
+ private:
   const Eigen::Vector2d target_;
 };
 
 // The mask residual (SkinnedMaskResidual) with the Jacobian above and the
 // interpolator's gradient.
-class SkinnedMaskCost : public ceres::CostFunction {
+class SkinnedMaskCost : public SkinnedPointCost {
  public:
   SkinnedMaskCost(const SkinnedPoint& p, const Pose& g, const Eigen::Vector4d& k, const cv::Mat& d)
-      : point_(p),
-        camera_from_root_(g),
-        intrinsics_(k),
+      : SkinnedPointCost(p, g, k, 1),
         distance_(d),
         grid_(distance_.ptr<float>(), 0, distance_.rows, 0, distance_.cols),
-        interpolator_(grid_) {
-    set_num_residuals(1);
-    for (size_t i = 0; i < point_.bones.size(); ++i) {
-      mutable_parameter_block_sizes()->push_back(kPoseSize);
-    }
-  }
+        interpolator_(grid_) {}
   SkinnedMaskCost(const SkinnedMaskCost&) = delete;
   SkinnedMaskCost& operator=(const SkinnedMaskCost&) = delete;
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
     std::vector<PixelJacobian> d_uv;
-    const Eigen::Vector2d uv = ProjectSkinnedPointWithJacobian(
-        point_, camera_from_root_, intrinsics_, parameters, jacobians != nullptr ? &d_uv : nullptr);
+    const Eigen::Vector2d uv = Project(parameters, jacobians != nullptr ? &d_uv : nullptr);
     double d_row = 0.0, d_col = 0.0;
     // Pixel (i, j) holds the value at its centre (i + 0.5, j + 0.5).
     interpolator_.Evaluate(uv.y() - 0.5, uv.x() - 0.5, residuals, &d_row, &d_col);
-    if (jacobians == nullptr) return true;
-    const Eigen::RowVector2d d_r(d_col, d_row);
-    for (size_t k = 0; k < d_uv.size(); ++k) {
-      if (jacobians[k] == nullptr) continue;
-      Eigen::Map<Eigen::Matrix<double, 1, kPoseSize>> out(jacobians[k]);
-      out = d_r * d_uv[k];
+    if (jacobians != nullptr) {
+      WriteJacobians<1>(Eigen::Matrix<double, 1, 2>(d_col, d_row), d_uv, jacobians);
     }
     return true;
   }
 
  private:
-  const SkinnedPoint point_;
-  const Pose camera_from_root_;
-  const Eigen::Vector4d intrinsics_;
   const cv::Mat distance_;
   const ceres::Grid2D<float, 1> grid_;
   const ceres::BiCubicInterpolator<ceres::Grid2D<float, 1>> interpolator_;
