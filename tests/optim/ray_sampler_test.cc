@@ -144,7 +144,7 @@ TEST_F(RaySamplerTest, UnbiasedSilhouetteWeightsUndoTheObjectPreference) {
   ASSERT_LT(object_share, 0.5);
   ASSERT_GT(band_share, 0.01);
   ASSERT_LT(band_share, 0.5);
-  for (const double boundary_fraction : {0.0, 0.3}) {
+  for (const double boundary_fraction : {0.0, 0.2}) {
     SCOPED_TRACE(boundary_fraction);
     SamplingConfig sampling;
     sampling.unbiased_silhouette = true;
@@ -170,11 +170,14 @@ TEST_F(RaySamplerTest, UnbiasedSilhouetteWeightsUndoTheObjectPreference) {
       weighted_band += r.silhouette_weight * in_band;
       unweighted_object += r.mask >= 0.5;
     }
-    // Standard errors at 40,000 draws are below 0.008 for these indicators
-    // (weights <= 1 / (1 - 0.6 - 0.3) = 10); 0.03 is about 4 of them.
-    EXPECT_NEAR(weighted_object / count, object_share, 0.03);
-    EXPECT_NEAR(weighted_known / count, known_share, 0.03);
-    EXPECT_NEAR(weighted_band / count, band_share, 0.03);
+    // Standard errors at 40,000 draws: the known-mask indicator's is the
+    // largest, as background pixels off the band (most of the frame) weigh
+    // 1 / (1 - f - e): 2.5 without the band (SE about 0.004), 5 with it
+    // (about 0.009); the tolerances are about 4 of them.
+    const double tolerance = boundary_fraction > 0 ? 0.04 : 0.015;
+    EXPECT_NEAR(weighted_object / count, object_share, tolerance);
+    EXPECT_NEAR(weighted_known / count, known_share, tolerance);
+    EXPECT_NEAR(weighted_band / count, band_share, tolerance);
     EXPECT_GT(unweighted_object / count, object_share + 0.4);
     // The band's share of the draws: its fraction plus its share of the
     // other two parts' (object pixels in the band, uniform draws on it).
