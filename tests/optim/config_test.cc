@@ -134,7 +134,7 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   // Bones registered after the second re-initialisation and again at 75 %.
   EXPECT_EQ(c.stages[0].bone_registration.at, (std::vector<double>{0.5, 0.75}));
   // ... with the mask term (fitted vertices into each frame's silhouette);
-  // the coverage term stays off (its ICP rounds cost 4x the registration).
+  // the coverage term stays off (bird: one seed gains, the other loses).
   EXPECT_EQ(c.stages[0].bone_registration.mask_weight, 10.0);
   EXPECT_EQ(c.stages[0].bone_registration.coverage_weight, 0.0);
   // Stage 2: 2D cycle (and a little silhouette), articulation only.
