@@ -108,33 +108,29 @@ Eigen::Vector2d ProjectSkinnedPointWithJacobian(const SkinnedPoint& point,
                                                 const Eigen::Vector4d& intrinsics,
                                                 double const* const* parameters,
                                                 std::vector<PixelJacobian>* d_uv) {
+  Eigen::Vector2d uv;
+  if (d_uv == nullptr) {  // values only: the templated projection
+    ProjectSkinnedPoint(point, camera_from_root, intrinsics, parameters, uv.data());
+    return uv;
+  }
   using J4 = ceres::Jet<double, 4>;
   const int n = static_cast<int>(point.bones.size());
   Eigen::Vector3d blended = Eigen::Vector3d::Zero();
-  std::vector<Eigen::Matrix<double, 3, 4>> d_q(d_uv != nullptr ? n : 0);
+  std::vector<Eigen::Matrix<double, 3, 4>> d_q(n);
   const J4 x[3] = {J4(point.x[0]), J4(point.x[1]), J4(point.x[2])};
   for (int k = 0; k < n; ++k) {
     const double* pose = parameters[k];
-    const double w = point.weights[k];
-    if (d_uv != nullptr) {
-      J4 q[4], z[3];
-      for (int i = 0; i < 4; ++i) q[i] = J4(pose[kPoseQw + i], i);
-      ceres::QuaternionRotatePoint(q, x, z);
-      for (int i = 0; i < 3; ++i) {
-        blended[i] += w * (z[i].a + pose[kPoseT + i]);
-        d_q[k].row(i) = z[i].v.transpose();
-      }
-    } else {
-      double z[3];
-      ceres::QuaternionRotatePoint(pose + kPoseQw, point.x.data(), z);
-      for (int i = 0; i < 3; ++i) blended[i] += w * (z[i] + pose[kPoseT + i]);
+    J4 q[4], z[3];
+    for (int i = 0; i < 4; ++i) q[i] = J4(pose[kPoseQw + i], i);
+    ceres::QuaternionRotatePoint(q, x, z);
+    for (int i = 0; i < 3; ++i) {
+      blended[i] += point.weights[k] * (z[i].a + pose[kPoseT + i]);
+      d_q[k].row(i) = z[i].v.transpose();
     }
   }
   Eigen::Vector3d cam;
   PoseTransformPoint(camera_from_root.data(), blended.data(), cam.data());
-  Eigen::Vector2d uv;
   ProjectPoint(intrinsics.data(), cam.data(), uv.data());
-  if (d_uv == nullptr) return uv;
   const bool clamped = cam.z() < kMinProjectionDepth;
   const double z = clamped ? kMinProjectionDepth : cam.z();
   Eigen::Matrix<double, 2, 3> d_cam;
