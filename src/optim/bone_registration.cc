@@ -327,25 +327,40 @@ SkinnedPoint MakeSkinnedPoint(const Eigen::Vector3d& x, const Eigen::VectorXd& w
   return p;
 }
 
+namespace {
+
+// The point checks of every skinned-residual maker.
+void CheckSkinnedPoint(const SkinnedPoint& point) {
+  CHECK(!point.bones.empty());
+  CHECK_EQ(point.bones.size(), point.weights.size());
+}
+
+// An autodiff twin's cost: one pose block per bone of the point.
+template <class Residual>
+std::unique_ptr<ceres::CostFunction> SkinnedAutoDiffCost(Residual* residual, int num_bones,
+                                                         int num_residuals) {
+  auto cost = std::make_unique<ceres::DynamicAutoDiffCostFunction<Residual, 14>>(residual);
+  for (int k = 0; k < num_bones; ++k) cost->AddParameterBlock(kPoseSize);
+  cost->SetNumResiduals(num_residuals);
+  return cost;
+}
+
+}  // namespace
+
 std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunction(const SkinnedPoint& point,
                                                                   const Pose& camera_from_root,
                                                                   const Eigen::Vector4d& intrinsics,
                                                                   const Eigen::Vector2d& target) {
-  CHECK(!point.bones.empty());
-  CHECK_EQ(point.bones.size(), point.weights.size());
+  CheckSkinnedPoint(point);
   return std::make_unique<SkinnedPixelCost>(point, camera_from_root, intrinsics, target);
 }
 
 std::unique_ptr<ceres::CostFunction> MakeSkinnedPixelCostFunctionAutoDiff(
     const SkinnedPoint& point, const Pose& camera_from_root, const Eigen::Vector4d& intrinsics,
     const Eigen::Vector2d& target) {
-  CHECK(!point.bones.empty());
-  CHECK_EQ(point.bones.size(), point.weights.size());
-  auto cost = std::make_unique<ceres::DynamicAutoDiffCostFunction<SkinnedPixelResidual, 14>>(
-      new SkinnedPixelResidual(point, camera_from_root, intrinsics, target));
-  for (size_t k = 0; k < point.bones.size(); ++k) cost->AddParameterBlock(kPoseSize);
-  cost->SetNumResiduals(2);
-  return cost;
+  CheckSkinnedPoint(point);
+  return SkinnedAutoDiffCost(new SkinnedPixelResidual(point, camera_from_root, intrinsics, target),
+                             static_cast<int>(point.bones.size()), 2);
 }
 
 cv::Mat MaskOutsideDistance(const cv::Mat& mask) {
@@ -362,8 +377,7 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunction(const SkinnedPo
                                                                  const Pose& camera_from_root,
                                                                  const Eigen::Vector4d& intrinsics,
                                                                  const cv::Mat& distance) {
-  CHECK(!point.bones.empty());
-  CHECK_EQ(point.bones.size(), point.weights.size());
+  CheckSkinnedPoint(point);
   CHECK_EQ(distance.type(), CV_32FC1);
   CHECK(distance.isContinuous());
   return std::make_unique<SkinnedMaskCost>(point, camera_from_root, intrinsics, distance);
@@ -372,15 +386,11 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunction(const SkinnedPo
 std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunctionAutoDiff(
     const SkinnedPoint& point, const Pose& camera_from_root, const Eigen::Vector4d& intrinsics,
     const cv::Mat& distance) {
-  CHECK(!point.bones.empty());
-  CHECK_EQ(point.bones.size(), point.weights.size());
+  CheckSkinnedPoint(point);
   CHECK_EQ(distance.type(), CV_32FC1);
   CHECK(distance.isContinuous());
-  auto cost = std::make_unique<ceres::DynamicAutoDiffCostFunction<SkinnedMaskResidual, 14>>(
-      new SkinnedMaskResidual(point, camera_from_root, intrinsics, distance));
-  for (size_t k = 0; k < point.bones.size(); ++k) cost->AddParameterBlock(kPoseSize);
-  cost->SetNumResiduals(1);
-  return cost;
+  return SkinnedAutoDiffCost(new SkinnedMaskResidual(point, camera_from_root, intrinsics, distance),
+                             static_cast<int>(point.bones.size()), 1);
 }
 
 std::unique_ptr<ceres::CostFunction> MakeBonePairCostFunction(const Eigen::Vector3d& m,
