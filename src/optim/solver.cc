@@ -201,6 +201,9 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
     RunBatch(batch_index, &run, &sp, c, result);
   }
   sp.ClearMinibatch();
+  // Registrations at the stage's end (`at` 1.0): after its last step, before
+  // the checkpoint of the next stage.
+  RegisterBones(stage.batches, stage, &sp, c);
   StageSummary& summary = run.summary;
   summary.batches = stage.batches - run.start;
   summary.seconds = run.Seconds(*c);
@@ -377,19 +380,7 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
       }
     }
   }
-  for (double at : stage.bone_registration.at) {
-    if (model.num_bones() == 0 || batch_index != stage.BatchAt(at)) continue;
-    const BoneRegistrationReport report = RegisterBoneMotion(
-        &model, dataset_, bounds_, stage.bone_registration, static_cast<uint32_t>(c->state->rng()));
-    if (report.registered) {
-      c->state->DropAdamMoments("bones_t");  // the bone transforms jumped
-      sp->batch().Invalidate();
-    }
-    if (!c->options.quiet) {
-      std::printf("[%s] %s\n", stage.name.c_str(), report.Describe().c_str());
-      std::fflush(stdout);
-    }
-  }
+  RegisterBones(batch_index, stage, sp, c);
   // Automatic model sizing (optim/auto_size.h), first stage only.
   const AutoSizeOptions& auto_size = config_.model.auto_size;
   for (double at : auto_size.grow_at) {
@@ -440,6 +431,24 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
     std::fflush(stdout);
   }
   result->pose_solves.push_back(std::move(report));
+}
+
+void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProblem* sp,
+                           RunContext* c) {
+  for (double at : stage.bone_registration.at) {
+    if (model_->num_bones() == 0 || batch_index != stage.BatchAt(at)) continue;
+    const BoneRegistrationReport report =
+        RegisterBoneMotion(model_.get(), dataset_, bounds_, stage.bone_registration,
+                           static_cast<uint32_t>(c->state->rng()));
+    if (report.registered) {
+      c->state->DropAdamMoments("bones_t");  // the bone transforms jumped
+      sp->batch().Invalidate();
+    }
+    if (!c->options.quiet) {
+      std::printf("[%s] %s\n", stage.name.c_str(), report.Describe().c_str());
+      std::fflush(stdout);
+    }
+  }
 }
 
 // A grow step of automatic sizing: the problem drops every block, the model

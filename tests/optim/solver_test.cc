@@ -618,6 +618,43 @@ TEST(Solver, BoneRegistrationAfterAReinitialisationMovesTheBonesAndResumes) {
   EXPECT_GT(largest, 0.02) << "rad";
 }
 
+// `at` 1.0 registers after the stage's last batch: the bones the solve
+// returns differ from those of its last step, and a run stopped at the
+// stage's end and resumed (the next stage's checkpoint) matches a straight
+// run, so the registration runs once and is saved.
+TEST(Solver, BoneRegistrationAtTheStagesEndRunsAfterItsLastBatch) {
+  SolverConfig config = TinyConfig(StepRule::kAdam, 4);
+  BoneRegistrationConfig& reg = config.stages[0].bone_registration;
+  reg.at = {1.0};
+  reg.resolution = 32;
+  reg.vertices = 300;
+  reg.match_pixels = 100;
+  reg.iterations = 3;
+  StageConfig second = config.stages[0];
+  second.name = "second";
+  second.batches = 2;
+  second.bone_registration.at.clear();
+  config.stages.push_back(second);
+  ExpectResumeEqualsStraight(config, {4, 5}, "banmo_resume_end_registration_test");
+
+  config.stages.pop_back();
+  const Dataset& data = TinyDataset();
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  std::vector<double> last_step;
+  SolveOptions options = options_quiet();
+  options.on_batch = [&](const BatchProgress&, const Model& model) {
+    last_step = model.frame(0, 2).bones_t;
+  };
+  solver.Run(options);
+  const std::vector<double>& registered = solver.model().frame(0, 2).bones_t;
+  ASSERT_EQ(registered.size(), last_step.size());
+  double moved = 0.0;
+  for (size_t i = 0; i < registered.size(); ++i) {
+    moved = std::max(moved, std::abs(registered[i] - last_step[i]));
+  }
+  EXPECT_GT(moved, 1e-3) << "no registration after the last batch";
+}
+
 SolverConfig AutoSizeConfig(int iterations) {
   SolverConfig config = TinyConfig(StepRule::kAdam, iterations);
   config.model.auto_size.enabled = true;

@@ -133,6 +133,10 @@ class Solver {
   // pose solves.
   void RunSchedules(int batch_index, double fraction, const StageRun& run, StageProblem* problem,
                     RunContext* c, SolveResult* result);
+  // The bone registrations of the stage's bone_registration.at that fire at
+  // batch_index (the stage's batch count: after its last batch).
+  void RegisterBones(int batch_index, const StageConfig& stage, StageProblem* problem,
+                     RunContext* c);
   void Grow(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
             SolveResult* result);
   // Every frame's root pose by LM on its own rays (optim/pose_solve.h).
