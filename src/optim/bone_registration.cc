@@ -335,6 +335,12 @@ void CheckSkinnedPoint(const SkinnedPoint& point) {
   CHECK_EQ(point.bones.size(), point.weights.size());
 }
 
+// The mask makers' distance map (MaskOutsideDistance's): read as contiguous floats.
+void CheckMaskDistance(const cv::Mat& distance) {
+  CHECK_EQ(distance.type(), CV_32FC1);
+  CHECK(distance.isContinuous());
+}
+
 // An autodiff twin's cost: one pose block per bone of the point.
 template <class Residual>
 std::unique_ptr<ceres::CostFunction> SkinnedAutoDiffCost(Residual* residual, int num_bones,
@@ -378,8 +384,7 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunction(const SkinnedPo
                                                                  const Eigen::Vector4d& intrinsics,
                                                                  const cv::Mat& distance) {
   CheckSkinnedPoint(point);
-  CHECK_EQ(distance.type(), CV_32FC1);
-  CHECK(distance.isContinuous());
+  CheckMaskDistance(distance);
   return std::make_unique<SkinnedMaskCost>(point, camera_from_root, intrinsics, distance);
 }
 
@@ -387,8 +392,7 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunctionAutoDiff(
     const SkinnedPoint& point, const Pose& camera_from_root, const Eigen::Vector4d& intrinsics,
     const cv::Mat& distance) {
   CheckSkinnedPoint(point);
-  CHECK_EQ(distance.type(), CV_32FC1);
-  CHECK(distance.isContinuous());
+  CheckMaskDistance(distance);
   return SkinnedAutoDiffCost(new SkinnedMaskResidual(point, camera_from_root, intrinsics, distance),
                              static_cast<int>(point.bones.size()), 1);
 }
