@@ -57,6 +57,14 @@ void AddRenderOptions(CLI::App* app, RenderArgs* a) {
                   "Importance resampling of the depth samples as the solver's importance_depth: "
                   "auto (as the checkpoint's last stage), on, off")
       ->capture_default_str();
+  // The mean of 4 jittered passes: the expected rendering the losses fit
+  // (docs/render.md, "--jitter-passes").
+  options.frame.jitter_passes = 4;
+  app->add_option("--jitter-passes", options.frame.jitter_passes,
+                  "K > 0: the mean of K renderings whose depth samples are jittered within their "
+                  "bins as the solver draws them (K times the time); 0: one rendering with the "
+                  "samples at the bins' midpoints")
+      ->capture_default_str();
   app->add_option("--bounds", a->bounds_text,
                   "Canonical box for the near/far planes and the mesh: 'auto' (the surface's "
                   "bounds + 10 %, as the solver refreshes them) or xmin,ymin,zmin,xmax,ymax,zmax")
@@ -102,6 +110,9 @@ void CheckRenderArgs(RenderArgs* a) {
   if (a->every < 1) ThrowInputError("--every: expected >= 1, got ", a->every);
   if (a->samples < 0) ThrowInputError("--samples: expected >= 0, got ", a->samples);
   if (a->scale < 0) ThrowInputError("--scale: expected >= 0, got ", a->scale);
+  if (a->options.frame.jitter_passes < 0) {
+    ThrowInputError("--jitter-passes: expected >= 0, got ", a->options.frame.jitter_passes);
+  }
   if (a->importance != "auto" && a->importance != "on" && a->importance != "off") {
     ThrowInputError("--importance: expected auto, on or off, got '", a->importance, "'");
   }
@@ -168,12 +179,16 @@ int DefaultScale(const Model& model) {
 void PrintPlan(const std::string& model_dir, const Model& model, size_t num_frames,
                const RenderSequenceOptions& options, bool explicit_bounds) {
   const Eigen::AlignedBox3d& b = options.frame.canonical_bounds;
+  const std::string jitter =
+      options.frame.jitter_passes > 0
+          ? ", mean of " + std::to_string(options.frame.jitter_passes) + " jittered passes"
+          : "";
   std::printf(
-      "model %s: %d videos, %d bones; %zu frames to render, %d samples per ray%s, canonical "
+      "model %s: %d videos, %d bones; %zu frames to render, %d samples per ray%s%s, canonical "
       "bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
       model_dir.c_str(), model.num_videos(), model.num_bones(), num_frames,
       options.frame.samples_per_ray, options.frame.importance ? " (+ importance resampling)" : "",
-      b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z(),
+      jitter.c_str(), b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z(),
       explicit_bounds ? "" : " (auto)");
   std::fflush(stdout);
 }

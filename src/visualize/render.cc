@@ -45,6 +45,7 @@ void FrameRenderOptions::Check() const {
   }
   if (chunk_rays <= 0) ThrowInputError("chunk_rays: expected > 0, got ", chunk_rays);
   if (flow_gap <= 0) ThrowInputError("flow_gap: expected > 0, got ", flow_gap);
+  if (jitter_passes < 0) ThrowInputError("jitter_passes: expected >= 0, got ", jitter_passes);
 }
 
 ObservedFrame ObserveFrame(const Dataset& dataset, int video, int frame, int flow_gap) {
@@ -109,74 +110,88 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
   const Eigen::Vector4d& k = model.video(observed.video).intrinsics;
 
   const int num_pixels = width * height;
+  // jitter_passes == 0: one pass at the bins' midpoints; K > 0: the mean of
+  // K passes with jittered depths, each seeded per pass and pixel.
+  const int passes = std::max(1, options.jitter_passes);
+  const double pass_weight = 1.0 / passes;
   std::vector<Ray> rays;
   std::vector<const Ray*> ray_ptrs;
   std::vector<RayParameters> params;
   std::vector<RayEvaluation> evals;
   for (int begin = 0; begin < num_pixels; begin += options.chunk_rays) {
     const int end = std::min(num_pixels, begin + options.chunk_rays);
-    rays.assign(end - begin, Ray());
-    for (int p = begin; p < end; ++p) {
-      const int x = p % width, y = p / width;
-      Ray& ray = rays[p - begin];
-      ray.video = observed.video;
-      ray.frame = observed.frame;
-      ray.uv = Eigen::Vector2d(x + 0.5, y + 0.5);
-      const cv::Vec3d c = observed.rgb.at<cv::Vec3d>(y, x);
-      ray.rgb = Eigen::Vector3d(c[0], c[1], c[2]);
-      ray.mask = 0.0;  // silhouette term only until the final pass
-      double ray_near = near, ray_far = far;
-      if (options.clip_to_box) {
-        ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k, ray.uv,
-                        &ray_near, &ray_far);
+    for (int pass = 0; pass < passes; ++pass) {
+      rays.assign(end - begin, Ray());
+      for (int p = begin; p < end; ++p) {
+        const int x = p % width, y = p / width;
+        Ray& ray = rays[p - begin];
+        ray.video = observed.video;
+        ray.frame = observed.frame;
+        ray.uv = Eigen::Vector2d(x + 0.5, y + 0.5);
+        const cv::Vec3d c = observed.rgb.at<cv::Vec3d>(y, x);
+        ray.rgb = Eigen::Vector3d(c[0], c[1], c[2]);
+        ray.mask = 0.0;  // silhouette term only until the final pass
+        double ray_near = near, ray_far = far;
+        if (options.clip_to_box) {
+          ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k,
+                          ray.uv, &ray_near, &ray_far);
+        }
+        std::mt19937 jitter_rng(options.importance_seed +
+                                static_cast<uint32_t>(pass) * static_cast<uint32_t>(num_pixels) +
+                                static_cast<uint32_t>(p) + 0x9e3779b9u);
+        ray.samples = StratifiedSamples(options.samples_per_ray, ray_near, ray_far,
+                                        RayDirectionLength(k, ray.uv), options.jitter_passes > 0,
+                                        &jitter_rng);
       }
-      ray.samples = StratifiedSamples(options.samples_per_ray, ray_near, ray_far,
-                                      RayDirectionLength(k, ray.uv), false, nullptr);
-    }
-    ray_ptrs.resize(rays.size());
-    params.resize(rays.size());
-    for (size_t r = 0; r < rays.size(); ++r) ray_ptrs[r] = &rays[r];
-    if (options.importance) {
-      // First pass for the weights tau_i only (silhouette term: no colour
-      // MLP, no flow partner).
+      ray_ptrs.resize(rays.size());
+      params.resize(rays.size());
+      for (size_t r = 0; r < rays.size(); ++r) ray_ptrs[r] = &rays[r];
+      if (options.importance) {
+        // First pass for the weights tau_i only (silhouette term: no colour
+        // MLP, no flow partner).
+        for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);
+        batch.EvaluateRays(ray_ptrs, params, false, &evals);
+        for (size_t r = 0; r < rays.size(); ++r) {
+          std::mt19937 rng(options.importance_seed +
+                           static_cast<uint32_t>(pass) * static_cast<uint32_t>(num_pixels) +
+                           static_cast<uint32_t>(begin + r));
+          ImportanceResample(evals[r].tau, &rays[r].samples, &rng);
+        }
+      }
+      for (int p = begin; p < end; ++p) {
+        Ray& ray = rays[p - begin];
+        ray.mask = 1.0;  // every term on (see the header)
+        if (observed.partner_frame >= 0) {
+          ray.partner_frame = observed.partner_frame;
+          ray.has_flow = true;
+          const cv::Vec2d f = observed.flow.at<cv::Vec2d>(p / width, p % width);
+          ray.flow = Eigen::Vector2d(f[0], f[1]);
+        }
+      }
       for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);
       batch.EvaluateRays(ray_ptrs, params, false, &evals);
       for (size_t r = 0; r < rays.size(); ++r) {
-        std::mt19937 rng(options.importance_seed + static_cast<uint32_t>(begin + r));
-        ImportanceResample(evals[r].tau, &rays[r].samples, &rng);
-      }
-    }
-    for (int p = begin; p < end; ++p) {
-      Ray& ray = rays[p - begin];
-      ray.mask = 1.0;  // every term on (see the header)
-      if (observed.partner_frame >= 0) {
-        ray.partner_frame = observed.partner_frame;
-        ray.has_flow = true;
-        const cv::Vec2d f = observed.flow.at<cv::Vec2d>(p / width, p % width);
-        ray.flow = Eigen::Vector2d(f[0], f[1]);
-      }
-    }
-    for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);
-    batch.EvaluateRays(ray_ptrs, params, false, &evals);
-    for (size_t r = 0; r < rays.size(); ++r) {
-      const int p = begin + static_cast<int>(r);
-      const int x = p % width, y = p / width;
-      const Ray& ray = rays[r];
-      const RayEvaluation& ev = evals[r];
-      // Unit weights: rendered = observed + residual (header).
-      const int rgb_row = ev.term_row[static_cast<int>(LossTerm::kRgb)];
-      const int sil_row = ev.term_row[static_cast<int>(LossTerm::kSilhouette)];
-      CHECK_GE(rgb_row, 0);
-      CHECK_GE(sil_row, 0);
-      out.rgb.at<cv::Vec3d>(y, x) =
-          cv::Vec3d(ray.rgb[0] + ev.residuals[rgb_row], ray.rgb[1] + ev.residuals[rgb_row + 1],
-                    ray.rgb[2] + ev.residuals[rgb_row + 2]);
-      out.opacity.at<double>(y, x) = ray.mask + ev.residuals[sil_row];
-      if (ray.HasTerm(LossTerm::kFlow, weights)) {
-        const int flow_row = ev.term_row[static_cast<int>(LossTerm::kFlow)];
-        CHECK_GE(flow_row, 0);
-        out.flow.at<cv::Vec2d>(y, x) = cv::Vec2d(ray.flow[0] + ev.residuals[flow_row],
-                                                 ray.flow[1] + ev.residuals[flow_row + 1]);
+        const int p = begin + static_cast<int>(r);
+        const int x = p % width, y = p / width;
+        const Ray& ray = rays[r];
+        const RayEvaluation& ev = evals[r];
+        // Unit weights: rendered = observed + residual (header).
+        const int rgb_row = ev.term_row[static_cast<int>(LossTerm::kRgb)];
+        const int sil_row = ev.term_row[static_cast<int>(LossTerm::kSilhouette)];
+        CHECK_GE(rgb_row, 0);
+        CHECK_GE(sil_row, 0);
+        out.rgb.at<cv::Vec3d>(y, x) +=
+            pass_weight * cv::Vec3d(ray.rgb[0] + ev.residuals[rgb_row],
+                                    ray.rgb[1] + ev.residuals[rgb_row + 1],
+                                    ray.rgb[2] + ev.residuals[rgb_row + 2]);
+        out.opacity.at<double>(y, x) += pass_weight * (ray.mask + ev.residuals[sil_row]);
+        if (ray.HasTerm(LossTerm::kFlow, weights)) {
+          const int flow_row = ev.term_row[static_cast<int>(LossTerm::kFlow)];
+          CHECK_GE(flow_row, 0);
+          out.flow.at<cv::Vec2d>(y, x) +=
+              pass_weight * cv::Vec2d(ray.flow[0] + ev.residuals[flow_row],
+                                      ray.flow[1] + ev.residuals[flow_row + 1]);
+        }
       }
     }
   }

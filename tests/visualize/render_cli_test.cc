@@ -89,6 +89,7 @@ TEST_F(RenderCli, RendersTheCheckpointOfBanmoSolve) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("[3/3] video 1 frame 5"), std::string::npos) << r.out;  // progress
   EXPECT_NE(r.out.find("16 samples per ray"), std::string::npos) << r.out;     // from the config
+  EXPECT_NE(r.out.find("mean of 4 jittered passes"), std::string::npos) << r.out;  // default
   for (const char* stem : {"video00_frame00000", "video01_frame00004", "video01_frame00005"}) {
     const cv::Mat png = cv::imread(out + "/frames/" + stem + ".png");
     ASSERT_FALSE(png.empty()) << stem;
@@ -173,13 +174,14 @@ TEST_F(RenderCli, BadFrameSelectionsAreErrors) {
 }
 
 TEST_F(RenderCli, BadOptionsAreErrorsNamingTheFlag) {
-  for (const auto& [args, flag] :
-       std::vector<std::pair<std::string, std::string>>{{"--every 0", "--every"},
-                                                        {"--bounds 1,2,3", "--bounds"},
-                                                        {"--bounds 0,0,0,1,x,1", "--bounds"},
-                                                        {"--scale -1", "--scale"},
-                                                        {"--importance maybe", "--importance"},
-                                                        {"--samples -2", "--samples"}}) {
+  for (const auto& [args, flag] : std::vector<std::pair<std::string, std::string>>{
+           {"--every 0", "--every"},
+           {"--bounds 1,2,3", "--bounds"},
+           {"--bounds 0,0,0,1,x,1", "--bounds"},
+           {"--scale -1", "--scale"},
+           {"--importance maybe", "--importance"},
+           {"--samples -2", "--samples"},
+           {"--jitter-passes -1", "--jitter-passes"}}) {
     const std::string out = Path("bad_option");
     const auto r =
         RunBanmo("render --model " + Model() + " --data " + Data() + " --out " + out + " " + args);
@@ -192,8 +194,9 @@ TEST_F(RenderCli, BadOptionsAreErrorsNamingTheFlag) {
 TEST_F(RenderCli, HelpListsTheOptions) {
   const auto r = RunBanmo("render --help");
   EXPECT_EQ(r.exit_code, 0);
-  for (const char* flag : {"--model", "--data", "--out", "--frames", "--every", "--samples",
-                           "--mesh-resolution", "--rgb-error-max", "--video", "--turntable"}) {
+  for (const char* flag :
+       {"--model", "--data", "--out", "--frames", "--every", "--samples", "--jitter-passes",
+        "--mesh-resolution", "--rgb-error-max", "--video", "--turntable"}) {
     EXPECT_NE(r.out.find(flag), std::string::npos) << flag;
   }
 }

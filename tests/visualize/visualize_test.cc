@@ -181,6 +181,37 @@ TEST(RenderFrame, ChunkSizeDoesNotChangeTheResult) {
   }
 }
 
+TEST(RenderFrame, JitteredPassesAreSeededPerPixelAndMoveTheSamples) {
+  // jitter_passes K > 0 averages K renderings with jittered depths: seeded
+  // per pass and pixel, so chunks do not change it (1e-12 as above) and a
+  // second call gives the same images; it differs from the midpoint
+  // rendering (the samples moved) and, with K = 2, from K = 1.
+  const Model& model = TrainedTinyModel();
+  const ObservedFrame observed = ObserveFrame(TinyQuadrupedDataset(), 0, 3, 2);
+  for (const bool importance : {false, true}) {
+    FrameRenderOptions options = TinyRenderOptions(model);
+    options.importance = importance;
+    const RenderedFrame midpoints = RenderFrame(model, observed, options);
+    options.jitter_passes = 1;
+    const RenderedFrame one = RenderFrame(model, observed, options);
+    options.jitter_passes = 2;
+    options.chunk_rays = 48 * 48;
+    const RenderedFrame two = RenderFrame(model, observed, options);
+    EXPECT_GT(cv::norm(one.opacity, midpoints.opacity, cv::NORM_INF), 1e-3) << importance;
+    EXPECT_GT(cv::norm(two.opacity, one.opacity, cv::NORM_INF), 1e-3) << importance;
+    options.chunk_rays = 7;
+    const RenderedFrame again = RenderFrame(model, observed, options);
+    EXPECT_LE(cv::norm(two.rgb, again.rgb, cv::NORM_INF), 1e-12) << importance;
+    EXPECT_LE(cv::norm(two.opacity, again.opacity, cv::NORM_INF), 1e-12) << importance;
+    EXPECT_LE(cv::norm(two.flow, again.flow, cv::NORM_INF), 1e-12) << importance;
+    // A mean of opacities in [0, 1] stays there (up to rounding).
+    double lo, hi;
+    cv::minMaxLoc(two.opacity, &lo, &hi);
+    EXPECT_GE(lo, -1e-12);
+    EXPECT_LE(hi, 1.0 + 1e-12);
+  }
+}
+
 TEST(ErrorMaps, ZeroWhereRenderedEqualsObservedAndTheDifferenceElsewhere) {
   const Model& model = TrainedTinyModel();
   const ObservedFrame real = ObserveFrame(TinyQuadrupedDataset(), 0, 1, 1);
@@ -411,6 +442,9 @@ TEST(FrameRenderOptions, CheckNamesTheField) {
   EXPECT_THROW(o.Check(), InputError);
   o = FrameRenderOptions();
   o.flow_gap = 0;
+  EXPECT_THROW(o.Check(), InputError);
+  o = FrameRenderOptions();
+  o.jitter_passes = -1;
   EXPECT_THROW(o.Check(), InputError);
   o = FrameRenderOptions();
   o.clip_margin = -0.1;

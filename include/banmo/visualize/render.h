@@ -47,10 +47,16 @@ struct FrameRenderOptions {
                                        Eigen::Vector3d::Constant(1.2)};
   // Second pass as the solver's importance_depth sampling: half of the
   // samples are redrawn from the first pass's rendering weights
-  // (ImportanceResample, seeded with importance_seed + pixel index, so the
-  // result is deterministic). Doubles the cost.
+  // (ImportanceResample, seeded from importance_seed, the jitter pass and
+  // the pixel index, so the result is deterministic). Doubles the cost.
   bool importance = false;
   uint32_t importance_seed = 0;
+  // 0: the samples at their bins' midpoints (one deterministic pass). K > 0:
+  // the mean of K passes whose samples are jittered within their bins as the
+  // solver draws them (StratifiedSamples with jitter), seeded from
+  // importance_seed, the pass and the pixel: an estimate of the expected
+  // rendering the losses fit. K times the cost.
+  int jitter_passes = 0;
   // Rays evaluated per call of RayBatch::EvaluateRays (> 0): bounds memory
   // (measured ~6 kB per sample of a ray: 1024 rays x 24 samples ~150 MB).
   int chunk_rays = 1024;
