@@ -154,7 +154,7 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   EXPECT_TRUE(s3.sampling.importance_depth);
   EXPECT_EQ(s3.sampling.active_fraction, 0.1);
   // ... starting from the bones registered once more, with the mask term.
-  EXPECT_EQ(s3.bone_registration.at, (std::vector<double>{0.0}));
+  EXPECT_EQ(s3.bone_registration.at, (std::vector<double>{0.0, 1.0}));
   EXPECT_EQ(s3.bone_registration.mask_weight, 10.0);
   EXPECT_TRUE(s2.bone_registration.at.empty());
   EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), G::kRoot), s3.constant.end());
