@@ -114,6 +114,11 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
   // K passes with jittered depths, each seeded per pass and pixel.
   const int passes = std::max(1, options.jitter_passes);
   const double pass_weight = 1.0 / passes;
+  auto pixel_seed = [&](int pass, int pixel) {
+    return options.importance_seed +
+           static_cast<uint32_t>(pass) * static_cast<uint32_t>(num_pixels) +
+           static_cast<uint32_t>(pixel);
+  };
   std::vector<Ray> rays;
   std::vector<const Ray*> ray_ptrs;
   std::vector<RayParameters> params;
@@ -136,9 +141,8 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
           ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k,
                           ray.uv, &ray_near, &ray_far);
         }
-        std::mt19937 jitter_rng(options.importance_seed +
-                                static_cast<uint32_t>(pass) * static_cast<uint32_t>(num_pixels) +
-                                static_cast<uint32_t>(p) + 0x9e3779b9u);
+        // Offset: a stream apart from the same pixel's importance draws.
+        std::mt19937 jitter_rng(pixel_seed(pass, p) + 0x9e3779b9u);
         ray.samples = StratifiedSamples(options.samples_per_ray, ray_near, ray_far,
                                         RayDirectionLength(k, ray.uv), options.jitter_passes > 0,
                                         &jitter_rng);
@@ -152,9 +156,7 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
         for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);
         batch.EvaluateRays(ray_ptrs, params, false, &evals);
         for (size_t r = 0; r < rays.size(); ++r) {
-          std::mt19937 rng(options.importance_seed +
-                           static_cast<uint32_t>(pass) * static_cast<uint32_t>(num_pixels) +
-                           static_cast<uint32_t>(begin + r));
+          std::mt19937 rng(pixel_seed(pass, begin + static_cast<int>(r)));
           ImportanceResample(evals[r].tau, &rays[r].samples, &rng);
         }
       }

@@ -584,6 +584,17 @@ TEST(Solver, ResumeWithPoseSolvesIsBitwiseIdentical) {
   }
 }
 
+// A registration small enough for the tiny scene, at fractions `at`.
+BoneRegistrationConfig TinyRegistration(std::vector<double> at) {
+  BoneRegistrationConfig reg;
+  reg.at = std::move(at);
+  reg.resolution = 32;
+  reg.vertices = 300;
+  reg.match_pixels = 100;
+  reg.iterations = 3;
+  return reg;
+}
+
 // A bone registration right after a re-initialisation (batch 3 of 6) sets
 // every frame's bone transforms away from the identity, draws from the
 // run's RNG and drops the bone transforms' Adam moments: runs stopped at its
@@ -591,12 +602,7 @@ TEST(Solver, ResumeWithPoseSolvesIsBitwiseIdentical) {
 TEST(Solver, BoneRegistrationAfterAReinitialisationMovesTheBonesAndResumes) {
   SolverConfig config = TinyConfig(StepRule::kAdam, 6);
   config.stages[0].schedule.bone_reinit_at = {0.5};
-  BoneRegistrationConfig& reg = config.stages[0].bone_registration;
-  reg.at = {0.5};
-  reg.resolution = 32;
-  reg.vertices = 300;
-  reg.match_pixels = 100;
-  reg.iterations = 3;
+  config.stages[0].bone_registration = TinyRegistration({0.5});
   ExpectResumeEqualsStraight(config, {3, 4}, "banmo_resume_bone_registration_test");
 
   const Dataset& data = TinyDataset();
@@ -624,12 +630,7 @@ TEST(Solver, BoneRegistrationAfterAReinitialisationMovesTheBonesAndResumes) {
 // run, so the registration runs once and is saved.
 TEST(Solver, BoneRegistrationAtTheStagesEndRunsAfterItsLastBatch) {
   SolverConfig config = TinyConfig(StepRule::kAdam, 4);
-  BoneRegistrationConfig& reg = config.stages[0].bone_registration;
-  reg.at = {1.0};
-  reg.resolution = 32;
-  reg.vertices = 300;
-  reg.match_pixels = 100;
-  reg.iterations = 3;
+  config.stages[0].bone_registration = TinyRegistration({1.0});
   StageConfig second = config.stages[0];
   second.name = "second";
   second.batches = 2;
