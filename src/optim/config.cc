@@ -586,6 +586,21 @@ class Checker {
     }
   }
 
+  // Fractions of a stage that schedule something at a batch
+  // (StageConfig::BatchAt): one that rounds to the batch count would come
+  // after the last batch and never run.
+  void BatchFractions(const std::string& key, const std::vector<double>& v, int batches) const {
+    IncreasingFractions(key, v);
+    for (size_t i = 0; i < v.size(); ++i) {
+      const long at = std::lround(v[i] * batches);
+      if (at >= batches) {
+        Fail(key + "[" + std::to_string(i) + "]", v[i], " of ", batches, " batches is batch ", at,
+             ", after the stage's last batch (", batches - 1,
+             "): it would never run; expected a fraction below ", (batches - 0.5) / batches);
+      }
+    }
+  }
+
  private:
   const std::string& source_;
 };
@@ -692,7 +707,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   }
 
   const std::string h = p + ".schedule";
-  c.IncreasingFractions(h + ".bone_reinit_at", s.schedule.bone_reinit_at);
+  c.BatchFractions(h + ".bone_reinit_at", s.schedule.bone_reinit_at, s.batches);
   c.Fraction(h + ".freeze_after_reinit", s.schedule.freeze_after_reinit);
   if (s.schedule.freeze_after_reinit > 0.0 && s.schedule.bone_reinit_at.empty()) {
     c.Fail(h + ".freeze_after_reinit",
@@ -712,7 +727,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   }
 
   const std::string q = p + ".pose_solve";
-  c.IncreasingFractions(q + ".at", s.pose_solve.at);
+  c.BatchFractions(q + ".at", s.pose_solve.at, s.batches);
   c.NonNegative(q + ".every", s.pose_solve.every);
   if (pose_solves && constant.Contains(ParameterGroup::kRoot) && !s.pose_solve.bones) {
     c.Fail(q + (s.pose_solve.at.empty() ? ".every" : ".at"),

@@ -382,6 +382,11 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) {
          S(c).schedule.bone_reinit_at = {0.5, 0.2};
        }},
+      {"stages[1].schedule.bone_reinit_at[1]",  // rounds to the batch count: never runs
+       [&](SolverConfig* c) {
+         S(c).batches = 100;
+         S(c).schedule.bone_reinit_at = {0.2, 0.996};
+       }},
       {"stages[1].schedule.freeze_after_reinit",
        [&](SolverConfig* c) {
          S(c).schedule.bone_reinit_at = {0.2};
@@ -411,6 +416,11 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].pose_solve.at[1]",
        [&](SolverConfig* c) {
          S(c).pose_solve.at = {0.5, 0.5};
+       }},
+      {"stages[1].pose_solve.at[0]",  // after the last batch: never runs
+       [&](SolverConfig* c) {
+         S(c).batches = 10;
+         S(c).pose_solve.at = {1.0};
        }},
       {"stages[1].pose_solve.at",
        [&](SolverConfig* c) {
