@@ -32,7 +32,7 @@ std::string Num(double x) {
 // The command line of banmo render.
 struct RenderArgs {
   std::string model_dir, data_dir, out_dir, frames_text, bounds_text = "auto", importance = "auto";
-  int every = 5, samples = 0, threads = 0, scale = 0;
+  int every = 5, samples = 0, importance_samples = -1, threads = 0, scale = 0;
   bool no_labels = false;
   RenderSequenceOptions options;
 };
@@ -56,6 +56,10 @@ void AddRenderOptions(CLI::App* app, RenderArgs* a) {
   app->add_option("--importance", a->importance,
                   "Importance resampling of the depth samples as the solver's importance_depth: "
                   "auto (as the checkpoint's last stage), on, off")
+      ->capture_default_str();
+  app->add_option("--importance-samples", a->importance_samples,
+                  "Samples the importance pass adds: 0 redraws half of the samples, K > 0 keeps "
+                  "them and adds K (-1 = importance_samples of the checkpoint's last stage)")
       ->capture_default_str();
   // The mean of 4 jittered passes: the expected rendering the losses fit
   // (docs/render.md, "--jitter-passes").
@@ -109,6 +113,10 @@ void CheckRenderArgs(RenderArgs* a) {
   if (a->threads > 0) SetNumThreads(a->threads);
   if (a->every < 1) ThrowInputError("--every: expected >= 1, got ", a->every);
   if (a->samples < 0) ThrowInputError("--samples: expected >= 0, got ", a->samples);
+  if (a->importance_samples < -1) {
+    ThrowInputError("--importance-samples: expected -1 (as trained) or >= 0, got ",
+                    a->importance_samples);
+  }
   if (a->scale < 0) ThrowInputError("--scale: expected >= 0, got ", a->scale);
   if (a->options.frame.jitter_passes < 0) {
     ThrowInputError("--jitter-passes: expected >= 0, got ", a->options.frame.jitter_passes);
@@ -136,8 +144,10 @@ void SetSampling(const Model& model, const RenderArgs& a, FrameRenderOptions* fr
     frame->clip_to_box = trained.clip_to_box;
     frame->clip_margin = trained.clip_margin;
     trained_importance = trained.importance_depth;
+    frame->importance_samples = trained.importance_samples;
   }
   if (a.samples > 0) frame->samples_per_ray = a.samples;
+  if (a.importance_samples >= 0) frame->importance_samples = a.importance_samples;
   frame->importance = a.importance == "on" || (a.importance == "auto" && trained_importance);
 }
 
@@ -179,6 +189,11 @@ int DefaultScale(const Model& model) {
 void PrintPlan(const std::string& model_dir, const Model& model, size_t num_frames,
                const RenderSequenceOptions& options, bool explicit_bounds) {
   const Eigen::AlignedBox3d& b = options.frame.canonical_bounds;
+  const std::string importance =
+      !options.frame.importance ? ""
+      : options.frame.importance_samples > 0
+          ? " (+ " + std::to_string(options.frame.importance_samples) + " importance samples)"
+          : " (+ importance resampling)";
   const std::string jitter =
       options.frame.jitter_passes > 0
           ? ", mean of " + std::to_string(options.frame.jitter_passes) + " jittered passes"
@@ -187,9 +202,8 @@ void PrintPlan(const std::string& model_dir, const Model& model, size_t num_fram
       "model %s: %d videos, %d bones; %zu frames to render, %d samples per ray%s%s, canonical "
       "bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
       model_dir.c_str(), model.num_videos(), model.num_bones(), num_frames,
-      options.frame.samples_per_ray, options.frame.importance ? " (+ importance resampling)" : "",
-      jitter.c_str(), b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z(),
-      explicit_bounds ? "" : " (auto)");
+      options.frame.samples_per_ray, importance.c_str(), jitter.c_str(), b.min().x(), b.min().y(),
+      b.min().z(), b.max().x(), b.max().y(), b.max().z(), explicit_bounds ? "" : " (auto)");
   std::fflush(stdout);
 }
 

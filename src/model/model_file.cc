@@ -290,6 +290,7 @@ std::optional<TrainingSampling> LegacyTrainingSampling(const YAML::Node& config,
     ReadOptional(source, path + "sampling.", sampling, "importance_depth", &s.importance_depth);
     ReadOptional(source, path + "sampling.", sampling, "clip_to_box", &s.clip_to_box);
     ReadOptional(source, path + "sampling.", sampling, "clip_margin", &s.clip_margin);
+    ReadOptional(source, path + "sampling.", sampling, "importance_samples", &s.importance_samples);
   }
   return s;
 }
@@ -354,6 +355,9 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
     if (s.clip_to_box) {  // absent in files of models trained without it
       out << YAML::Key << "clip_to_box" << YAML::Value << "true";
       out << YAML::Key << "clip_margin" << YAML::Value << FormatDouble(s.clip_margin);
+    }
+    if (s.importance_samples > 0) {  // absent in files of models trained without it
+      out << YAML::Key << "importance_samples" << YAML::Value << s.importance_samples;
     }
     out << YAML::EndMap;
   }
@@ -470,10 +474,14 @@ void ReadOptions(const std::string& yaml_path, const YAML::Node& root, ModelOpti
       ReadRequired(source, s, "clip_to_box", &t.clip_to_box);
       ReadRequired(source, s, "clip_margin", &t.clip_margin);
     }
-    if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0) || !(t.clip_margin >= 0)) {
+    if (s["importance_samples"].IsDefined()) {
+      ReadRequired(source, s, "importance_samples", &t.importance_samples);
+    }
+    if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0) || !(t.clip_margin >= 0) ||
+        t.importance_samples < 0) {
       ThrowInputError(yaml_path,
                       ": key 'training_sampling': expected samples_per_ray > 0, "
-                      "near_far_margin >= 0 and clip_margin >= 0",
+                      "near_far_margin >= 0, clip_margin >= 0 and importance_samples >= 0",
                       kWhatToDo);
     }
     *sampling = t;

@@ -95,6 +95,7 @@ void VisitFields(V& v, SamplingConfig& o) {
   v("boundary_fraction", o.boundary_fraction);
   v("active_fraction", o.active_fraction);
   v("importance_depth", o.importance_depth);
+  v("importance_samples", o.importance_samples);
   v("near_far_margin", o.near_far_margin);
   v("clip_to_box", o.clip_to_box);
   v("clip_margin", o.clip_margin);
@@ -683,6 +684,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
            1.0 - s.sampling.foreground_fraction, "), got ", s.sampling.boundary_fraction);
   }
   c.Fraction(g + ".active_fraction", s.sampling.active_fraction);
+  c.NonNegative(g + ".importance_samples", s.sampling.importance_samples);
+  if (s.sampling.importance_samples > 0 && !s.sampling.importance_depth) {
+    c.Fail(g + ".importance_samples", "needs sampling.importance_depth: true (got ",
+           s.sampling.importance_samples, " added samples without the importance pass)");
+  }
   c.NonNegative(g + ".near_far_margin", s.sampling.near_far_margin);
   c.NonNegative(g + ".clip_margin", s.sampling.clip_margin);
   if (s.losses[LossTerm::kFlow].weight > 0 && s.sampling.flow_gaps.empty()) {

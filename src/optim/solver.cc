@@ -88,7 +88,7 @@ SolveResult Solver::Run(const SolveOptions& options) {
     const StageConfig& last = config_.stages.back();
     model_->set_training_sampling(TrainingSampling{
         last.samples_per_ray, last.sampling.near_far_margin, last.sampling.importance_depth,
-        last.sampling.clip_to_box, last.sampling.clip_margin});
+        last.sampling.clip_to_box, last.sampling.clip_margin, last.sampling.importance_samples});
   }
   SigintGuard guard;
   if (config_.threads > 0) SetNumThreads(config_.threads);
@@ -339,7 +339,8 @@ std::vector<Ray> Solver::SampleRays(const StageConfig& stage, double fraction,
     coarse.SetRays(rays);
     coarse.EvaluateAll(false);
     for (int r = 0; r < coarse.num_rays(); ++r) {
-      ImportanceResample(coarse.evaluation(r).tau, &rays[r].samples, rng);
+      ImportanceResample(coarse.evaluation(r).tau, stage.sampling.importance_samples,
+                         &rays[r].samples, rng);
     }
   }
   return rays;

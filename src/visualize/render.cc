@@ -46,6 +46,9 @@ void FrameRenderOptions::Check() const {
   if (chunk_rays <= 0) ThrowInputError("chunk_rays: expected > 0, got ", chunk_rays);
   if (flow_gap <= 0) ThrowInputError("flow_gap: expected > 0, got ", flow_gap);
   if (jitter_passes < 0) ThrowInputError("jitter_passes: expected >= 0, got ", jitter_passes);
+  if (importance_samples < 0) {
+    ThrowInputError("importance_samples: expected >= 0, got ", importance_samples);
+  }
 }
 
 ObservedFrame ObserveFrame(const Dataset& dataset, int video, int frame, int flow_gap) {
@@ -120,54 +123,70 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
            static_cast<uint32_t>(pixel);
   };
   std::vector<Ray> rays;
+  std::vector<Eigen::Vector2d> depth_ranges;  // each ray's [near, far], clipped to the box
   std::vector<const Ray*> ray_ptrs;
   std::vector<RayParameters> params;
   std::vector<RayEvaluation> evals;
   for (int begin = 0; begin < num_pixels; begin += options.chunk_rays) {
     const int end = std::min(num_pixels, begin + options.chunk_rays);
-    for (int pass = 0; pass < passes; ++pass) {
-      rays.assign(end - begin, Ray());
-      for (int p = begin; p < end; ++p) {
-        const int x = p % width, y = p / width;
-        Ray& ray = rays[p - begin];
-        ray.video = observed.video;
-        ray.frame = observed.frame;
-        ray.uv = Eigen::Vector2d(x + 0.5, y + 0.5);
-        const cv::Vec3d c = observed.rgb.at<cv::Vec3d>(y, x);
-        ray.rgb = Eigen::Vector3d(c[0], c[1], c[2]);
-        ray.mask = 0.0;  // silhouette term only until the final pass
-        double ray_near = near, ray_far = far;
-        if (options.clip_to_box) {
-          ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k,
-                          ray.uv, &ray_near, &ray_far);
-        }
-        // Offset: a stream apart from the same pixel's importance draws.
-        std::mt19937 jitter_rng(pixel_seed(pass, p) + 0x9e3779b9u);
-        ray.samples = StratifiedSamples(options.samples_per_ray, ray_near, ray_far,
-                                        RayDirectionLength(k, ray.uv), options.jitter_passes > 0,
-                                        &jitter_rng);
+    // The chunk's rays once: what changes between passes is only their samples.
+    rays.assign(end - begin, Ray());
+    depth_ranges.assign(end - begin, Eigen::Vector2d(near, far));
+    for (int p = begin; p < end; ++p) {
+      const int x = p % width, y = p / width;
+      Ray& ray = rays[p - begin];
+      ray.video = observed.video;
+      ray.frame = observed.frame;
+      ray.uv = Eigen::Vector2d(x + 0.5, y + 0.5);
+      const cv::Vec3d c = observed.rgb.at<cv::Vec3d>(y, x);
+      ray.rgb = Eigen::Vector3d(c[0], c[1], c[2]);
+      if (observed.partner_frame >= 0) {
+        const cv::Vec2d f = observed.flow.at<cv::Vec2d>(y, x);
+        ray.flow = Eigen::Vector2d(f[0], f[1]);
       }
-      ray_ptrs.resize(rays.size());
-      params.resize(rays.size());
-      for (size_t r = 0; r < rays.size(); ++r) ray_ptrs[r] = &rays[r];
+      if (options.clip_to_box) {
+        Eigen::Vector2d& range = depth_ranges[p - begin];
+        ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k, ray.uv,
+                        &range[0], &range[1]);
+      }
+    }
+    ray_ptrs.resize(rays.size());
+    params.resize(rays.size());
+    for (size_t r = 0; r < rays.size(); ++r) ray_ptrs[r] = &rays[r];
+    for (int pass = 0; pass < passes; ++pass) {
+      for (size_t r = 0; r < rays.size(); ++r) {
+        Ray& ray = rays[r];
+        // The silhouette term only until the final evaluation: no colour MLP,
+        // no flow partner in the importance pass.
+        ray.mask = 0.0;
+        ray.partner_frame = -1;
+        ray.has_flow = false;
+        const Eigen::Vector2d& range = depth_ranges[r];
+        const double dir_norm = RayDirectionLength(k, ray.uv);
+        if (options.jitter_passes > 0) {
+          // Offset: a stream apart from the same pixel's importance draws.
+          std::mt19937 jitter_rng(pixel_seed(pass, begin + static_cast<int>(r)) + 0x9e3779b9u);
+          ray.samples = StratifiedSamples(options.samples_per_ray, range[0], range[1], dir_norm,
+                                          true, &jitter_rng);
+        } else {
+          ray.samples = StratifiedSamples(options.samples_per_ray, range[0], range[1], dir_norm,
+                                          false, nullptr);
+        }
+      }
       if (options.importance) {
-        // First pass for the weights tau_i only (silhouette term: no colour
-        // MLP, no flow partner).
+        // First pass for the weights tau_i only.
         for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);
         batch.EvaluateRays(ray_ptrs, params, false, &evals);
         for (size_t r = 0; r < rays.size(); ++r) {
           std::mt19937 rng(pixel_seed(pass, begin + static_cast<int>(r)));
-          ImportanceResample(evals[r].tau, &rays[r].samples, &rng);
+          ImportanceResample(evals[r].tau, options.importance_samples, &rays[r].samples, &rng);
         }
       }
-      for (int p = begin; p < end; ++p) {
-        Ray& ray = rays[p - begin];
+      for (Ray& ray : rays) {
         ray.mask = 1.0;  // every term on (see the header)
         if (observed.partner_frame >= 0) {
           ray.partner_frame = observed.partner_frame;
           ray.has_flow = true;
-          const cv::Vec2d f = observed.flow.at<cv::Vec2d>(p / width, p % width);
-          ray.flow = Eigen::Vector2d(f[0], f[1]);
         }
       }
       for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);

@@ -58,9 +58,11 @@ bool ClipDepthsToBox(const Pose& camera_from_root, const Eigen::AlignedBox3d& ca
   return true;
 }
 
-void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng) {
+void ImportanceResample(const std::vector<double>& tau, int added, RaySamples* samples,
+                        std::mt19937* rng) {
   const int n = static_cast<int>(samples->depths.size());
   CHECK_EQ(static_cast<int>(tau.size()), n);
+  CHECK_GE(added, 0);
   if (n < 2) return;
   // Interval i spans [depth_i, depth_i + delta_i / dir_norm).
   const double dir_norm = samples->dir_norm;
@@ -70,11 +72,15 @@ void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std
     hi[i] = samples->depths[i] + samples->deltas[i] / dir_norm;
     cdf[i + 1] = cdf[i] + std::max(tau[i], 0.0) + 1e-5;  // floor keeps empty rays sampled
   }
+  // added == 0: the even samples kept, the odd ones redrawn (n in all);
+  // added > 0: every sample kept and `added` drawn (n + added).
+  const int total = added > 0 ? n + added : n;
+  const int keep_every = added > 0 ? 1 : 2;
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<double> depths;
-  depths.reserve(n);
-  for (int i = 0; i < n; i += 2) depths.push_back(samples->depths[i]);
-  while (static_cast<int>(depths.size()) < n) {
+  depths.reserve(total);
+  for (int i = 0; i < n; i += keep_every) depths.push_back(samples->depths[i]);
+  while (static_cast<int>(depths.size()) < total) {
     const double u = unit(*rng) * cdf[n];
     const int i =
         std::min<int>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin() - 1, n - 1);
@@ -84,8 +90,9 @@ void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std
   std::sort(depths.begin(), depths.end());
   const double far = hi[n - 1];
   samples->depths = depths;
-  for (int i = 0; i < n; ++i) {
-    const double next = i + 1 < n ? depths[i + 1] : far;
+  samples->deltas.resize(total);
+  for (int i = 0; i < total; ++i) {
+    const double next = i + 1 < total ? depths[i + 1] : far;
     samples->deltas[i] = std::max(next - depths[i], 1e-9) * dir_norm;
   }
 }

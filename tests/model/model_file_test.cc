@@ -188,6 +188,8 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   EXPECT_TRUE(back->training_sampling()->importance_depth);
   EXPECT_FALSE(back->training_sampling()->clip_to_box);  // not written when off
   EXPECT_EQ(ReadText(dir / "model.yaml").find("clip_to_box"), std::string::npos);
+  EXPECT_EQ(back->training_sampling()->importance_samples, 0);
+  EXPECT_EQ(ReadText(dir / "model.yaml").find("importance_samples"), std::string::npos);
   ExpectSameModel(*model, *back);
   // Ray clipping is recorded when on.
   model->set_training_sampling(TrainingSampling{24, 0.15, true, true, 0.125});
@@ -196,6 +198,12 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   ASSERT_TRUE(clipped->training_sampling().has_value());
   EXPECT_TRUE(clipped->training_sampling()->clip_to_box);
   EXPECT_EQ(clipped->training_sampling()->clip_margin, 0.125);
+  // So are the importance pass's added samples.
+  model->set_training_sampling(TrainingSampling{24, 0.15, true, false, 0.1, 40});
+  WriteModelFiles(dir.string(), *model);
+  EXPECT_EQ(LoadModel(dir.string())->training_sampling()->importance_samples, 40);
+  model->set_training_sampling(TrainingSampling{24, 0.15, true, true, 0.125});
+  WriteModelFiles(dir.string(), *model);
   // A negative clip margin in the file is an error naming the key.
   std::string yaml_clip = ReadText(dir / "model.yaml");
   const size_t margin_at = yaml_clip.find("clip_margin: ");

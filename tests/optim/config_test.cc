@@ -349,6 +349,16 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).sampling.active_fraction = -0.1; }},
       {"stages[1].sampling.near_far_margin",
        [&](SolverConfig* c) { S(c).sampling.near_far_margin = -1; }},
+      {"stages[1].sampling.importance_samples",
+       [&](SolverConfig* c) {
+         S(c).sampling.importance_depth = true;
+         S(c).sampling.importance_samples = -1;
+       }},
+      {"stages[1].sampling.importance_samples",  // added samples without the importance pass
+       [&](SolverConfig* c) {
+         S(c).sampling.importance_depth = false;
+         S(c).sampling.importance_samples = 16;
+       }},
       {"stages[1].sampling.flow_gaps[2]",
        [&](SolverConfig* c) {
          S(c).sampling.flow_gaps = {1, 2, 0};
@@ -746,6 +756,7 @@ SolverConfig EveryFieldChanged() {
     s.sampling.boundary_fraction = 0.2;
     s.sampling.active_fraction = 0.15;
     s.sampling.importance_depth = true;
+    s.sampling.importance_samples = 19;
     s.sampling.near_far_margin = 0.33;
     s.sampling.flow_gaps = {1, 3};
     s.sampling.eikonal_points = 100;
@@ -906,6 +917,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.sampling.frames_per_batch, t.sampling.frames_per_batch);
     EXPECT_EQ(s.sampling.unbiased_silhouette, t.sampling.unbiased_silhouette);
     EXPECT_EQ(s.sampling.clip_to_box, t.sampling.clip_to_box);
+    EXPECT_EQ(s.sampling.importance_samples, t.sampling.importance_samples);
     EXPECT_EQ(s.sampling.clip_margin, t.sampling.clip_margin);
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
     EXPECT_EQ(s.schedule.bone_reinit_keep_motion, t.schedule.bone_reinit_keep_motion);

@@ -181,6 +181,7 @@ TEST_F(RenderCli, BadOptionsAreErrorsNamingTheFlag) {
            {"--scale -1", "--scale"},
            {"--importance maybe", "--importance"},
            {"--samples -2", "--samples"},
+           {"--importance-samples -2", "--importance-samples"},
            {"--jitter-passes -1", "--jitter-passes"}}) {
     const std::string out = Path("bad_option");
     const auto r =
@@ -195,8 +196,8 @@ TEST_F(RenderCli, HelpListsTheOptions) {
   const auto r = RunBanmo("render --help");
   EXPECT_EQ(r.exit_code, 0);
   for (const char* flag :
-       {"--model", "--data", "--out", "--frames", "--every", "--samples", "--jitter-passes",
-        "--mesh-resolution", "--rgb-error-max", "--video", "--turntable"}) {
+       {"--model", "--data", "--out", "--frames", "--every", "--samples", "--importance-samples",
+        "--jitter-passes", "--mesh-resolution", "--rgb-error-max", "--video", "--turntable"}) {
     EXPECT_NE(r.out.find(flag), std::string::npos) << flag;
   }
 }

@@ -181,6 +181,32 @@ TEST(RenderFrame, ChunkSizeDoesNotChangeTheResult) {
   }
 }
 
+TEST(RenderFrame, AddedImportanceSamplesAreSeededPerPixel) {
+  // importance_samples K > 0 keeps the stratified samples and adds K: a
+  // different rendering from the half-redrawn one, still independent of the
+  // chunks (1e-12 as above), jittered or not.
+  const Model& model = TrainedTinyModel();
+  const ObservedFrame observed = ObserveFrame(TinyQuadrupedDataset(), 0, 3, 2);
+  for (const int passes : {0, 2}) {
+    FrameRenderOptions options = TinyRenderOptions(model);
+    options.importance = true;
+    options.jitter_passes = passes;
+    options.chunk_rays = 48 * 48;
+    const RenderedFrame half = RenderFrame(model, observed, options);
+    options.importance_samples = 16;
+    const RenderedFrame added = RenderFrame(model, observed, options);
+    EXPECT_GT(cv::norm(added.opacity, half.opacity, cv::NORM_INF), 1e-3) << passes;
+    options.chunk_rays = 7;
+    const RenderedFrame parts = RenderFrame(model, observed, options);
+    EXPECT_LE(cv::norm(added.rgb, parts.rgb, cv::NORM_INF), 1e-12) << passes;
+    EXPECT_LE(cv::norm(added.opacity, parts.opacity, cv::NORM_INF), 1e-12) << passes;
+    EXPECT_LE(cv::norm(added.flow, parts.flow, cv::NORM_INF), 1e-12) << passes;
+  }
+  FrameRenderOptions bad = TinyRenderOptions(model);
+  bad.importance_samples = -1;
+  EXPECT_THROW(bad.Check(), InputError);
+}
+
 TEST(RenderFrame, JitteredPassesAreSeededPerPixelAndMoveTheSamples) {
   // jitter_passes K > 0 averages K renderings with jittered depths: seeded
   // per pass and pixel, so chunks do not change it (1e-12 as above) and a

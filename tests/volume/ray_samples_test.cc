@@ -78,7 +78,7 @@ TEST(ImportanceResample, KeepsTheEvenSamplesAndDrawsTheRestWhereTheWeightIs) {
   tau[5] = 1.0;
   const double lo5 = before.depths[5], hi5 = before.depths[5] + before.deltas[5] / dir_norm;
   const double far = before.depths[n - 1] + before.deltas[n - 1] / dir_norm;
-  ImportanceResample(tau, &s, &rng);
+  ImportanceResample(tau, /*added=*/0, &s, &rng);
   ASSERT_EQ(static_cast<int>(s.depths.size()), n);
   ASSERT_EQ(static_cast<int>(s.deltas.size()), n);
   EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end()));
@@ -105,7 +105,7 @@ TEST(ImportanceResample, UniformWeightsSpreadTheDrawnSamples) {
   std::mt19937 rng(5);
   const int n = 64;
   RaySamples s = StratifiedSamples(n, 1.0, 3.0, 1.0, /*jitter=*/false, &rng);
-  ImportanceResample(std::vector<double>(n, 0.5), &s, &rng);
+  ImportanceResample(std::vector<double>(n, 0.5), /*added=*/0, &s, &rng);
   // Half the samples on each half of [1, 3] within sampling noise.
   const int low = static_cast<int>(
       std::count_if(s.depths.begin(), s.depths.end(), [](double d) { return d < 2.0; }));
@@ -119,9 +119,44 @@ TEST(ImportanceResample, SingleSampleIsLeftAlone) {
   std::mt19937 rng(7);
   RaySamples s = StratifiedSamples(1, 1.0, 2.0, 1.0, false, &rng);
   const RaySamples before = s;
-  ImportanceResample({1.0}, &s, &rng);
+  ImportanceResample({1.0}, /*added=*/0, &s, &rng);
   EXPECT_EQ(s.depths, before.depths);
   EXPECT_EQ(s.deltas, before.deltas);
+  ImportanceResample({1.0}, /*added=*/8, &s, &rng);
+  EXPECT_EQ(s.depths, before.depths);
+  EXPECT_EQ(s.deltas, before.deltas);
+}
+
+TEST(ImportanceResample, AddedSamplesKeepEveryStratifiedOne) {
+  std::mt19937 rng(11);
+  const int n = 16, added = 24;
+  const double dir_norm = 1.1;
+  RaySamples s = StratifiedSamples(n, 2.0, 6.0, dir_norm, /*jitter=*/true, &rng);
+  const RaySamples before = s;
+  std::vector<double> tau(n, 0.0);
+  tau[9] = 1.0;
+  const double lo9 = before.depths[9], hi9 = before.depths[9] + before.deltas[9] / dir_norm;
+  const double far = before.depths[n - 1] + before.deltas[n - 1] / dir_norm;
+  ImportanceResample(tau, added, &s, &rng);
+  ASSERT_EQ(static_cast<int>(s.depths.size()), n + added);
+  ASSERT_EQ(static_cast<int>(s.deltas.size()), n + added);
+  EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end()));
+  for (int i = 0; i < n; ++i) {
+    EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) != s.depths.end())
+        << "sample " << i;
+  }
+  // Interval 9 holds its own stratified sample and every drawn one (the
+  // 1e-5 floor elsewhere makes a draw outside it a ~2e-4 event per draw).
+  int in_interval = 0;
+  for (double d : s.depths) in_interval += d >= lo9 && d < hi9;
+  EXPECT_EQ(in_interval, 1 + added);
+  // Still a tiling of [first depth, far].
+  double length = 0;
+  for (double delta : s.deltas) {
+    EXPECT_GT(delta, 0);
+    length += delta / dir_norm;
+  }
+  EXPECT_NEAR(length, far - s.depths[0], 1e-12);
 }
 
 // Intrinsics of a 100 x 100 camera with focal length 100.

@@ -86,6 +86,7 @@ struct TrainingSampling {
   bool importance_depth = false;  // second pass of samples around the surface
   bool clip_to_box = false;       // rays clipped to the widened canonical bounds
   double clip_margin = 0.1;       // their widening, fraction of the largest side (>= 0)
+  int importance_samples = 0;     // SamplingConfig::importance_samples (>= 0)
 };
 
 struct FrameParameters {

@@ -124,7 +124,12 @@ struct SamplingConfig {
   double boundary_fraction = 0.0;
   double active_fraction = 0.0;   // fraction drawn from the error cache (active sampling)
   bool importance_depth = false;  // second pass of samples around the surface
-  double near_far_margin = 0.2;   // +-20 % around the canonical bounds' depth range
+  // With importance_depth: 0 redraws half of the samples_per_ray samples from
+  // the first pass's weights (a ray keeps samples_per_ray samples); K > 0
+  // keeps all of them and adds K drawn ones (NeRF's coarse + fine; the paper
+  // 64 + 64). ImportanceResample (volume/ray_samples.h).
+  int importance_samples = 0;
+  double near_far_margin = 0.2;  // +-20 % around the canonical bounds' depth range
   // Each ray's samples span only its part inside the canonical bounds
   // widened by clip_margin times their largest side (ClipDepthsToBox,
   // volume/ray_samples.h), not the frame's whole near-far range.

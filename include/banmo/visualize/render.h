@@ -51,6 +51,10 @@ struct FrameRenderOptions {
   // the pixel index, so the result is deterministic). Doubles the cost.
   bool importance = false;
   uint32_t importance_seed = 0;
+  // Samples the importance pass adds (ImportanceResample's `added`; >= 0):
+  // 0 redraws half of samples_per_ray, K > 0 keeps them all and adds K, as
+  // the solver's sampling.importance_samples.
+  int importance_samples = 0;
   // 0: the samples at their bins' midpoints (one deterministic pass). K > 0:
   // the mean of K passes whose samples are jittered within their bins as the
   // solver draws them (StratifiedSamples with jitter), seeded from

@@ -43,10 +43,14 @@ inline double RayDirectionLength(const Eigen::Vector4d& intrinsics, const Eigen:
       .norm();
 }
 
-// Replaces half of `samples` (the odd-indexed ones after sorting) by depths
+// Importance resampling (NeRF's hierarchical sampling, one level): depths
 // drawn from the piecewise-constant density given by the rendering weights
-// `tau` over the samples' intervals, keeps the depths sorted and recomputes
-// the interval lengths. Used by importance_depth sampling.
-void ImportanceResample(const std::vector<double>& tau, RaySamples* samples, std::mt19937* rng);
+// `tau` over the samples' intervals. added == 0 replaces half of `samples`
+// (the odd-indexed ones), so a ray keeps its n samples; added > 0 keeps all
+// n and adds `added` drawn ones (n + added). The depths stay sorted and the
+// interval lengths are recomputed. Used by importance_depth sampling
+// (SamplingConfig::importance_samples is `added`).
+void ImportanceResample(const std::vector<double>& tau, int added, RaySamples* samples,
+                        std::mt19937* rng);
 
 }  // namespace banmo
