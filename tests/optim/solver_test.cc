@@ -378,6 +378,34 @@ TEST(Solver, OnBatchSeesEveryBatchInOrder) {
   EXPECT_EQ(seen.back().stage_batches, 3);
 }
 
+// sampling.importance_samples: the importance pass adds its samples to the
+// stratified ones (ray_samples_test checks the draws); a stage with it runs,
+// stays finite, ends elsewhere than with the half-redrawn samples (the rays
+// differ) and records the count with the model for banmo render.
+TEST(Solver, AddedImportanceSamplesRunAndAreRecordedWithTheModel) {
+  const Dataset& data = TinyDataset();
+  std::vector<std::vector<double>> ends;
+  for (const int added : {0, 16}) {
+    SolverConfig config = TinyConfig(StepRule::kAdam, 6);
+    config.stages[0].sampling.importance_depth = true;
+    config.stages[0].sampling.importance_samples = added;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    const SolveResult r = solver.Run(options_quiet());
+    ASSERT_EQ(r.stages.size(), 1u);
+    EXPECT_TRUE(r.stages[0].finite) << added;
+    ASSERT_TRUE(solver.model().training_sampling().has_value());
+    EXPECT_EQ(solver.model().training_sampling()->importance_samples, added);
+    EXPECT_TRUE(solver.model().training_sampling()->importance_depth);
+    ends.push_back(AllParameters(solver.model()));
+  }
+  ASSERT_EQ(ends[0].size(), ends[1].size());
+  double max_change = 0.0;
+  for (size_t i = 0; i < ends[0].size(); ++i) {
+    max_change = std::max(max_change, std::abs(ends[0][i] - ends[1][i]));
+  }
+  EXPECT_GT(max_change, 1e-6);
+}
+
 // Delta skinning switched on at half the stage: before, MLP_Delta and the
 // pose codes stay untouched (output layer zero, left out of the batch);
 // after, they move and the run stays finite.
