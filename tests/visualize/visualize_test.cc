@@ -152,6 +152,14 @@ TEST(RenderFrame, EqualsTheFullJetReferenceResidualPlusObservation) {
   EXPECT_LT(object_pixels, static_cast<int>(pixels.size()));
 }
 
+// The three pictures of two renderings agree within tol (rounding only).
+void ExpectSameImages(const RenderedFrame& a, const RenderedFrame& b, double tol,
+                      const std::string& what) {
+  EXPECT_LE(cv::norm(a.rgb, b.rgb, cv::NORM_INF), tol) << what;
+  EXPECT_LE(cv::norm(a.opacity, b.opacity, cv::NORM_INF), tol) << what;
+  EXPECT_LE(cv::norm(a.flow, b.flow, cv::NORM_INF), tol) << what;
+}
+
 TEST(RenderFrame, ChunkSizeDoesNotChangeTheResult) {
   // Chunks are a memory bound only: one chunk, chunks of 1000 (partial last
   // one) and of 7 rays give the same images, with and without importance
@@ -174,9 +182,8 @@ TEST(RenderFrame, ChunkSizeDoesNotChangeTheResult) {
     for (const int chunk : {1000, 7}) {
       options.chunk_rays = chunk;
       const RenderedFrame parts = RenderFrame(model, observed, options);
-      EXPECT_LE(cv::norm(whole.rgb, parts.rgb, cv::NORM_INF), 1e-12) << chunk << importance;
-      EXPECT_LE(cv::norm(whole.opacity, parts.opacity, cv::NORM_INF), 1e-12) << chunk << importance;
-      EXPECT_LE(cv::norm(whole.flow, parts.flow, cv::NORM_INF), 1e-12) << chunk << importance;
+      ExpectSameImages(whole, parts, 1e-12,
+                       std::to_string(chunk) + (importance ? " importance" : ""));
     }
   }
 }
@@ -198,9 +205,7 @@ TEST(RenderFrame, AddedImportanceSamplesAreSeededPerPixel) {
     EXPECT_GT(cv::norm(added.opacity, half.opacity, cv::NORM_INF), 1e-3) << passes;
     options.chunk_rays = 7;
     const RenderedFrame parts = RenderFrame(model, observed, options);
-    EXPECT_LE(cv::norm(added.rgb, parts.rgb, cv::NORM_INF), 1e-12) << passes;
-    EXPECT_LE(cv::norm(added.opacity, parts.opacity, cv::NORM_INF), 1e-12) << passes;
-    EXPECT_LE(cv::norm(added.flow, parts.flow, cv::NORM_INF), 1e-12) << passes;
+    ExpectSameImages(added, parts, 1e-12, std::to_string(passes) + " passes");
   }
   FrameRenderOptions bad = TinyRenderOptions(model);
   bad.importance_samples = -1;
@@ -227,9 +232,7 @@ TEST(RenderFrame, JitteredPassesAreSeededPerPixelAndMoveTheSamples) {
     EXPECT_GT(cv::norm(two.opacity, one.opacity, cv::NORM_INF), 1e-3) << importance;
     options.chunk_rays = 7;
     const RenderedFrame again = RenderFrame(model, observed, options);
-    EXPECT_LE(cv::norm(two.rgb, again.rgb, cv::NORM_INF), 1e-12) << importance;
-    EXPECT_LE(cv::norm(two.opacity, again.opacity, cv::NORM_INF), 1e-12) << importance;
-    EXPECT_LE(cv::norm(two.flow, again.flow, cv::NORM_INF), 1e-12) << importance;
+    ExpectSameImages(two, again, 1e-12, importance ? "importance" : "");
     // A mean of opacities in [0, 1] stays there (up to rounding).
     double lo, hi;
     cv::minMaxLoc(two.opacity, &lo, &hi);

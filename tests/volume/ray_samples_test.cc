@@ -67,38 +67,44 @@ TEST(RayDirectionLength, OneAtThePrincipalPointAndGrowingOutwards) {
   EXPECT_NEAR(RayDirectionLength(k, Eigen::Vector2d(82, 49)), std::sqrt(1.5), 1e-15);
 }
 
-TEST(ImportanceResample, KeepsTheEvenSamplesAndDrawsTheRestWhereTheWeightIs) {
-  std::mt19937 rng(3);
-  const int n = 16;
-  const double dir_norm = 1.25;
-  RaySamples s = StratifiedSamples(n, 2.0, 6.0, dir_norm, /*jitter=*/true, &rng);
-  const RaySamples before = s;
-  // All the weight on interval 5.
-  std::vector<double> tau(n, 0.0);
-  tau[5] = 1.0;
-  const double lo5 = before.depths[5], hi5 = before.depths[5] + before.deltas[5] / dir_norm;
-  const double far = before.depths[n - 1] + before.deltas[n - 1] / dir_norm;
-  ImportanceResample(tau, /*added=*/0, &s, &rng);
-  ASSERT_EQ(static_cast<int>(s.depths.size()), n);
-  ASSERT_EQ(static_cast<int>(s.deltas.size()), n);
-  EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end()));
-  // Every even-indexed original depth is still there.
-  for (int i = 0; i < n; i += 2) {
-    EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) != s.depths.end())
-        << "sample " << i;
+TEST(ImportanceResample, KeepsTheStratifiedSamplesAndDrawsWhereTheWeightIs) {
+  // added 0: the even samples kept, the odd half redrawn; added K: every
+  // sample kept and K drawn.
+  for (const int added : {0, 24}) {
+    std::mt19937 rng(3);
+    const int n = 16;
+    const double dir_norm = 1.25;
+    RaySamples s = StratifiedSamples(n, 2.0, 6.0, dir_norm, /*jitter=*/true, &rng);
+    const RaySamples before = s;
+    // All the weight on interval 5.
+    std::vector<double> tau(n, 0.0);
+    tau[5] = 1.0;
+    const double lo5 = before.depths[5], hi5 = before.depths[5] + before.deltas[5] / dir_norm;
+    const double far = before.depths[n - 1] + before.deltas[n - 1] / dir_norm;
+    ImportanceResample(tau, added, &s, &rng);
+    const int total = added > 0 ? n + added : n;
+    ASSERT_EQ(static_cast<int>(s.depths.size()), total) << added;
+    ASSERT_EQ(static_cast<int>(s.deltas.size()), total) << added;
+    EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end())) << added;
+    // Every kept original depth is still there.
+    for (int i = 0; i<n; i += added> 0 ? 1 : 2) {
+      EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) != s.depths.end())
+          << "sample " << i << ", added " << added;
+    }
+    // The drawn samples lie in interval 5 (the 1e-5 floor of the other
+    // intervals makes a draw elsewhere a ~1e-4 event per draw), beside its
+    // own stratified sample when every sample is kept.
+    int in_interval = 0;
+    for (double d : s.depths) in_interval += d >= lo5 && d < hi5;
+    EXPECT_EQ(in_interval, added > 0 ? 1 + added : n / 2) << added;
+    // The intervals tile [first depth, far] (deltas are along the ray: x dir_norm).
+    double length = 0;
+    for (int i = 0; i < total; ++i) {
+      EXPECT_GT(s.deltas[i], 0) << added;
+      length += s.deltas[i] / dir_norm;
+    }
+    EXPECT_NEAR(length, far - s.depths[0], 1e-12) << added;
   }
-  // The drawn half lies in interval 5, which holds no kept sample (the
-  // 1e-5 floor of the other intervals makes a draw elsewhere a 1e-4 event).
-  int in_interval = 0;
-  for (double d : s.depths) in_interval += d >= lo5 && d < hi5;
-  EXPECT_EQ(in_interval, n / 2);
-  // The intervals tile [first depth, far] (deltas are along the ray: x dir_norm).
-  double length = 0;
-  for (int i = 0; i < n; ++i) {
-    EXPECT_GT(s.deltas[i], 0);
-    length += s.deltas[i] / dir_norm;
-  }
-  EXPECT_NEAR(length, far - s.depths[0], 1e-12);
 }
 
 TEST(ImportanceResample, UniformWeightsSpreadTheDrawnSamples) {
@@ -125,38 +131,6 @@ TEST(ImportanceResample, SingleSampleIsLeftAlone) {
   ImportanceResample({1.0}, /*added=*/8, &s, &rng);
   EXPECT_EQ(s.depths, before.depths);
   EXPECT_EQ(s.deltas, before.deltas);
-}
-
-TEST(ImportanceResample, AddedSamplesKeepEveryStratifiedOne) {
-  std::mt19937 rng(11);
-  const int n = 16, added = 24;
-  const double dir_norm = 1.1;
-  RaySamples s = StratifiedSamples(n, 2.0, 6.0, dir_norm, /*jitter=*/true, &rng);
-  const RaySamples before = s;
-  std::vector<double> tau(n, 0.0);
-  tau[9] = 1.0;
-  const double lo9 = before.depths[9], hi9 = before.depths[9] + before.deltas[9] / dir_norm;
-  const double far = before.depths[n - 1] + before.deltas[n - 1] / dir_norm;
-  ImportanceResample(tau, added, &s, &rng);
-  ASSERT_EQ(static_cast<int>(s.depths.size()), n + added);
-  ASSERT_EQ(static_cast<int>(s.deltas.size()), n + added);
-  EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end()));
-  for (int i = 0; i < n; ++i) {
-    EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) != s.depths.end())
-        << "sample " << i;
-  }
-  // Interval 9 holds its own stratified sample and every drawn one (the
-  // 1e-5 floor elsewhere makes a draw outside it a ~2e-4 event per draw).
-  int in_interval = 0;
-  for (double d : s.depths) in_interval += d >= lo9 && d < hi9;
-  EXPECT_EQ(in_interval, 1 + added);
-  // Still a tiling of [first depth, far].
-  double length = 0;
-  for (double delta : s.deltas) {
-    EXPECT_GT(delta, 0);
-    length += delta / dir_norm;
-  }
-  EXPECT_NEAR(length, far - s.depths[0], 1e-12);
 }
 
 // Intrinsics of a 100 x 100 camera with focal length 100.
