@@ -11,12 +11,13 @@
 // Rays are built as optim/ray_sampler.cc builds them: pixel centre uv =
 // (x + 0.5, y + 0.5), depth samples between the frame's near and far planes
 // (volume/ray_samples.h, NearFarPlanes: canonical bounds through the root
-// pose, +- margin), here
-// stratified at the bin midpoints (no jitter, so renders are deterministic),
-// optionally refined by the solver's importance resampling with a fixed
-// seed. Every ray carries mask = 1 so the rgb and flow terms are active on
-// every pixel (the losses switch them off on background pixels); the error
-// maps compare with the real observations separately (ComputeErrorMaps).
+// pose, +- margin), stratified in their bins (at the midpoints, or jittered
+// and averaged over jitter_passes), optionally refined by the solver's
+// importance resampling; every draw is seeded per pass and pixel, so a
+// picture is the same every time. Every ray carries mask = 1 so the rgb
+// and flow terms are active on every pixel (the losses switch them off on
+// background pixels); the error maps compare with the real observations
+// separately (ComputeErrorMaps).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -48,7 +49,8 @@ struct FrameRenderOptions {
   // Second pass as the solver's importance_depth sampling: half of the
   // samples are redrawn from the first pass's rendering weights
   // (ImportanceResample, seeded from importance_seed, the jitter pass and
-  // the pixel index, so the result is deterministic). Doubles the cost.
+  // the pixel index, so the result is deterministic). About doubles the
+  // cost (more with importance_samples).
   bool importance = false;
   uint32_t importance_seed = 0;
   // Samples the importance pass adds (ImportanceResample's `added`; >= 0):
