@@ -87,7 +87,8 @@ TEST(ImportanceResample, KeepsTheStratifiedSamplesAndDrawsWhereTheWeightIs) {
     ASSERT_EQ(static_cast<int>(s.deltas.size()), total) << added;
     EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end())) << added;
     // Every kept original depth is still there.
-    for (int i = 0; i<n; i += added> 0 ? 1 : 2) {
+    const int keep_every = added > 0 ? 1 : 2;
+    for (int i = 0; i < n; i += keep_every) {
       EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) != s.depths.end())
           << "sample " << i << ", added " << added;
     }
