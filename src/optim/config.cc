@@ -931,6 +931,10 @@ void CheckSolverConfig(const SolverConfig& config, const std::string& source) {
              config.stages[i].schedule.delta_skinning_from);
     }
   }
+  if (m.auto_size.enabled) {
+    // The grow steps run in the first stage (optim/auto_size.h).
+    c.BatchFractions("model.auto_size.grow_at", m.auto_size.grow_at, config.stages[0].batches);
+  }
 }
 
 }  // namespace banmo

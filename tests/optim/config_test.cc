@@ -525,6 +525,12 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) {
          c->model.auto_size.grow_at = {0.5, 0.5};
        }},
+      {"model.auto_size.grow_at[2]",  // rounds to stage 0's batch count: never runs
+       [&](SolverConfig* c) {
+         c->model.auto_size.enabled = true;
+         c->stages[0].batches = 100;
+         c->model.auto_size.grow_at = {0.4, 0.55, 0.996};
+       }},
       {"model.auto_size.error_ratio",
        [&](SolverConfig* c) { c->model.auto_size.error_ratio = 0.9; }},
       {"model.auto_size.eval_rays", [&](SolverConfig* c) { c->model.auto_size.eval_rays = 0; }},
