@@ -10,6 +10,10 @@
 #include "banmo/util/logging.h"
 #include "command.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 namespace {
 
 void PrintUsage() {
@@ -25,6 +29,17 @@ void PrintUsage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+#if defined(__GLIBC__)
+  // glibc serves blocks over 128 kB by mmap and hands them back on free (its
+  // threshold rises only slowly), so code that builds its per-chunk
+  // matrices afresh (the MLP caches of a ray batch: MBs each) takes a page
+  // fault per 4 kB page on every call: `banmo render` spent 40 % of its time
+  // in the kernel and ran 2.8x slower (docs/render.md, "Measured"). Blocks
+  // up to 32 MB (the dynamic threshold's own maximum) come from the heap,
+  // and its top is kept up to 256 MB instead of being trimmed.
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
   banmo::InitLogging(argv[0]);
   if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0 ||
       std::strcmp(argv[1], "help") == 0) {

@@ -12,6 +12,7 @@
 #include "banmo/extract/extract.h"
 #include "banmo/io/dataset.h"
 #include "banmo/model/model_file.h"
+#include "banmo/util/enum_names.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
@@ -199,11 +200,12 @@ void PrintPlan(const std::string& model_dir, const Model& model, size_t num_fram
           ? ", mean of " + std::to_string(options.frame.jitter_passes) + " jittered passes"
           : "";
   std::printf(
-      "model %s: %d videos, %d bones; %zu frames to render, %d samples per ray%s%s, canonical "
-      "bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
-      model_dir.c_str(), model.num_videos(), model.num_bones(), num_frames,
-      options.frame.samples_per_ray, importance.c_str(), jitter.c_str(), b.min().x(), b.min().y(),
-      b.min().z(), b.max().x(), b.max().y(), b.max().z(), explicit_bounds ? "" : " (auto)");
+      "model %s: %d videos, %d bones, %s density with beta %.4g; %zu frames to render, %d "
+      "samples per ray%s%s, canonical bounds [%.3g %.3g %.3g] - [%.3g %.3g %.3g]%s\n",
+      model_dir.c_str(), model.num_videos(), model.num_bones(), EnumName(model.options().density),
+      std::exp(*model.log_beta()), num_frames, options.frame.samples_per_ray, importance.c_str(),
+      jitter.c_str(), b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z(),
+      explicit_bounds ? "" : " (auto)");
   std::fflush(stdout);
 }
 

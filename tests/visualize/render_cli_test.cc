@@ -90,6 +90,8 @@ TEST_F(RenderCli, RendersTheCheckpointOfBanmoSolve) {
   EXPECT_NE(r.out.find("[3/3] video 1 frame 5"), std::string::npos) << r.out;  // progress
   EXPECT_NE(r.out.find("16 samples per ray"), std::string::npos) << r.out;     // from the config
   EXPECT_NE(r.out.find("mean of 4 jittered passes"), std::string::npos) << r.out;  // default
+  // The model's density and its beta (0.05 at initialisation).
+  EXPECT_NE(r.out.find("volsdf density with beta 0.0"), std::string::npos) << r.out;
   for (const char* stem : {"video00_frame00000", "video01_frame00004", "video01_frame00005"}) {
     const cv::Mat png = cv::imread(out + "/frames/" + stem + ".png");
     ASSERT_FALSE(png.empty()) << stem;
