@@ -30,14 +30,14 @@ void PrintUsage() {
 
 int main(int argc, char** argv) {
 #if defined(__GLIBC__)
-  // glibc serves blocks over 128 kB by mmap and hands them back on free (its
-  // threshold rises only slowly), so code that builds its per-chunk
-  // matrices afresh (the MLP caches of a ray batch: MBs each) takes a page
-  // fault per 4 kB page on every call: `banmo render` spent about 40 % of
-  // its CPU time in the kernel and ran 2.7x slower (docs/render.md,
-  // "Measured"). Blocks up to 32 MB (the dynamic threshold's own maximum)
-  // come from the heap, and its top is kept up to 256 MB instead of being
-  // trimmed.
+  // glibc serves blocks over its mmap threshold (128 kB at start) by mmap
+  // and hands them back on free (its dynamic threshold did not prevent it
+  // here), so code that builds its per-chunk matrices afresh (the MLP
+  // caches of a ray batch: MBs each) takes a page fault per 4 kB page on
+  // every call: `banmo render` spent about 40 % of its CPU time in the
+  // kernel and ran 2.7x slower (docs/render.md, "Measured"). Blocks up to
+  // 32 MB (the dynamic threshold's own maximum) come from the heap, and its
+  // top is kept up to 256 MB instead of being trimmed.
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 256 << 20);
 #endif
