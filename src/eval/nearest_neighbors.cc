@@ -63,6 +63,20 @@ void KdTree3::Nearest(const Eigen::Matrix3Xd& queries, Eigen::VectorXi* indices,
   });
 }
 
+int KdTree3::Nearest(const Eigen::Vector3d& query, double* squared_distance) const {
+  flann::SearchParams params;
+  params.eps = 0.0f;  // exact
+  params.checks = flann::FLANN_CHECKS_UNLIMITED;
+  params.sorted = false;
+  flann::KNNSimpleResultSet<double> result(1);
+  impl_->index.findNeighbors(result, query.data(), params);
+  std::size_t index = 0;
+  double dist = 0.0;
+  result.copy(&index, &dist, 1, false);
+  if (squared_distance != nullptr) *squared_distance = dist;
+  return static_cast<int>(index);
+}
+
 void KdTree3::NearestK(const Eigen::Matrix3Xd& queries, int k, Eigen::MatrixXi* indices,
                        Eigen::MatrixXd* squared_distances) const {
   CHECK_GE(k, 1);

@@ -18,6 +18,7 @@
 #include <random>
 
 #include "banmo/deform/bones.h"
+#include "banmo/eval/nearest_neighbors.h"
 #include "banmo/extract/extract.h"
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/pose_manifold.h"
@@ -647,23 +648,25 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
       for (ceres::ResidualBlockId id : coverage_blocks) problem.RemoveResidualBlock(id);
       coverage_blocks.clear();
       const std::vector<Eigen::Vector2d>& pixels = silhouette->object_pixels;
-      std::vector<Eigen::Vector2d> projected(proxy.points.size());
+      // The projections as points of the plane z = 0 of an exact kd-tree
+      // (a brute-force search was 128 ms a frame at 10 rounds, 13,266
+      // vertices and 500 pixels).
+      Eigen::Matrix3Xd projected = Eigen::Matrix3Xd::Zero(3, proxy.points.size());
       for (size_t i = 0; i < proxy.points.size(); ++i) {
         const SkinnedPoint& p = proxy.points[i];
         std::vector<const double*> blocks;
         for (int b : p.bones) blocks.push_back(block(b));
-        ProjectSkinnedPoint(p, camera_from_root, intrinsics, blocks.data(), projected[i].data());
+        double uv[2];
+        ProjectSkinnedPoint(p, camera_from_root, intrinsics, blocks.data(), uv);
+        projected(0, i) = uv[0];
+        projected(1, i) = uv[1];
       }
+      const KdTree3 tree(projected);
       auto* loss =
           new ceres::ScaledLoss(new ceres::HuberLoss(config.huber_px),
                                 config.coverage_weight / pixels.size(), ceres::TAKE_OWNERSHIP);
       for (const Eigen::Vector2d& q : pixels) {
-        int nearest = -1;
-        double best = std::numeric_limits<double>::infinity();
-        for (size_t i = 0; i < projected.size(); ++i) {
-          const double d = (projected[i] - q).squaredNorm();
-          if (d < best) best = d, nearest = static_cast<int>(i);
-        }
+        const int nearest = tree.Nearest(Eigen::Vector3d(q.x(), q.y(), 0.0));
         const SkinnedPoint& p = proxy.points[nearest];
         std::vector<double*> blocks;
         for (int b : p.bones) blocks.push_back(block(b));

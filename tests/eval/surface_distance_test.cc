@@ -206,6 +206,31 @@ TEST(KdTree3, NearestKMatchesSortedBruteForce) {
   EXPECT_EQ(idx(2, 0), -1);
 }
 
+TEST(KdTree3, SingleQueryNearestMatchesBruteForce) {
+  Uniform u(6);
+  Eigen::Matrix3Xd points(3, 2500), queries(3, 300);
+  for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) = u.Vector();
+  // Points on a plane (z = 0) too: the bone registration's 2-D use.
+  points.row(2).rightCols(1000).setZero();
+  for (Eigen::Index i = 0; i < queries.cols(); ++i) queries.col(i) = 1.3 * u.Vector();
+  queries.row(2).rightCols(100).setZero();
+  const KdTree3 tree(points);
+  Eigen::VectorXi expected;
+  Eigen::VectorXd expected_sq;
+  BruteForceNearest(points, queries, &expected, &expected_sq);
+  for (Eigen::Index q = 0; q < queries.cols(); ++q) {
+    double sq = -1.0;
+    const int i = tree.Nearest(Eigen::Vector3d(queries.col(q)), &sq);
+    ASSERT_GE(i, 0);
+    ASSERT_LT(i, points.cols());
+    // Exact: the same distance as the brute-force search (the index may
+    // differ only between equidistant points).
+    EXPECT_DOUBLE_EQ(sq, expected_sq(q));
+    EXPECT_DOUBLE_EQ((points.col(i) - queries.col(q)).squaredNorm(), sq);
+    EXPECT_EQ(tree.Nearest(Eigen::Vector3d(queries.col(q))), i);
+  }
+}
+
 TEST(KdTree3, WithinRadiusMatchesBruteForce) {
   Uniform u(8);
   Eigen::Matrix3Xd points(3, 2000);

@@ -31,6 +31,11 @@ class KdTree3 {
   void Nearest(const Eigen::Matrix3Xd& queries, Eigen::VectorXi* indices,
                Eigen::VectorXd* squared_distances) const;
 
+  // Index of the indexed point nearest to `query` and (if not null) the
+  // squared distance to it. Thread-safe (one query, no parallelism inside:
+  // for callers that are themselves parallel).
+  int Nearest(const Eigen::Vector3d& query, double* squared_distance = nullptr) const;
+
   // The k nearest indexed points of every query column (k >= 1; fewer
   // columns are valid when the tree holds fewer than k points: the rest are
   // -1 with an infinite distance): column q of `indices` / `squared_distances`
