@@ -32,7 +32,8 @@ std::string Num(double x) {
 
 // The command line of banmo render.
 struct RenderArgs {
-  std::string model_dir, data_dir, out_dir, frames_text, bounds_text = "auto", importance = "auto";
+  std::string model_dir, data_dir, out_dir, frames_text, bounds_text = "auto", importance = "auto",
+                                                         min_sdf_sample = "auto";
   int every = 5, samples = 0, importance_samples = -1, threads = 0, scale = 0;
   bool no_labels = false;
   RenderSequenceOptions options;
@@ -61,6 +62,11 @@ void AddRenderOptions(CLI::App* app, RenderArgs* a) {
   app->add_option("--importance-samples", a->importance_samples,
                   "Samples the importance pass adds: 0 redraws half of the samples, K > 0 keeps "
                   "them and adds K (-1 = importance_samples of the checkpoint's last stage)")
+      ->capture_default_str();
+  app->add_option("--min-sdf-sample", a->min_sdf_sample,
+                  "One importance sample at each ray's SDF minimum, as the solver's "
+                  "min_sdf_sample: auto (as the checkpoint's last stage), on (needs the "
+                  "importance pass), off")
       ->capture_default_str();
   // The mean of 4 jittered passes: the expected rendering the losses fit
   // (docs/render.md, "--jitter-passes").
@@ -125,6 +131,9 @@ void CheckRenderArgs(RenderArgs* a) {
   if (a->importance != "auto" && a->importance != "on" && a->importance != "off") {
     ThrowInputError("--importance: expected auto, on or off, got '", a->importance, "'");
   }
+  if (a->min_sdf_sample != "auto" && a->min_sdf_sample != "on" && a->min_sdf_sample != "off") {
+    ThrowInputError("--min-sdf-sample: expected auto, on or off, got '", a->min_sdf_sample, "'");
+  }
   if (a->bounds_text != "auto") {
     a->options.frame.canonical_bounds = tools::ParseBoxOption(
         "--bounds", a->bounds_text, "'auto' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
@@ -137,7 +146,7 @@ void CheckRenderArgs(RenderArgs* a) {
 // Sampling as the model was trained (the last stage of its solver config),
 // unless --samples / --importance say otherwise.
 void SetSampling(const Model& model, const RenderArgs& a, FrameRenderOptions* frame) {
-  bool trained_importance = false;
+  bool trained_importance = false, trained_min_sdf_sample = false;
   if (model.training_sampling()) {
     const TrainingSampling& trained = *model.training_sampling();
     frame->samples_per_ray = trained.samples_per_ray;
@@ -146,10 +155,19 @@ void SetSampling(const Model& model, const RenderArgs& a, FrameRenderOptions* fr
     frame->clip_margin = trained.clip_margin;
     trained_importance = trained.importance_depth;
     frame->importance_samples = trained.importance_samples;
+    trained_min_sdf_sample = trained.min_sdf_sample;
   }
   if (a.samples > 0) frame->samples_per_ray = a.samples;
   if (a.importance_samples >= 0) frame->importance_samples = a.importance_samples;
   frame->importance = a.importance == "on" || (a.importance == "auto" && trained_importance);
+  if (a.min_sdf_sample == "on" && !frame->importance) {
+    ThrowInputError(
+        "--min-sdf-sample on: needs the importance pass (--importance on, or a model "
+        "trained with it)");
+  }
+  frame->min_sdf_sample =
+      frame->importance &&
+      (a.min_sdf_sample == "on" || (a.min_sdf_sample == "auto" && trained_min_sdf_sample));
 }
 
 // The (video, frame) pairs of --frames, or every --every-th frame of every
@@ -193,8 +211,10 @@ void PrintPlan(const std::string& model_dir, const Model& model, size_t num_fram
   const std::string importance =
       !options.frame.importance ? ""
       : options.frame.importance_samples > 0
-          ? " (+ " + std::to_string(options.frame.importance_samples) + " importance samples)"
-          : " (+ importance resampling)";
+          ? " (+ " + std::to_string(options.frame.importance_samples) + " importance samples" +
+                (options.frame.min_sdf_sample ? ", one at the SDF minimum)" : ")")
+      : options.frame.min_sdf_sample ? " (+ importance resampling, one sample at the SDF minimum)"
+                                     : " (+ importance resampling)";
   const std::string jitter =
       options.frame.jitter_passes > 0
           ? ", mean of " + std::to_string(options.frame.jitter_passes) + " jittered passes"

@@ -498,6 +498,7 @@ bool RayPipeline::RenderingWeights(RayWork& w) {
     ev.tau.resize(n);
     CompositeWeights(n, sdf.data(), *p.block[kBlockLogBeta], ray.samples.deltas.data(),
                      model.options().density, ev.tau.data());
+    ev.sdf = std::move(sdf);
   }
   w.tau = ray.cycle_tau.empty() ? &ev.tau : &ray.cycle_tau;
   const std::vector<double>& tau = *w.tau;

@@ -291,6 +291,7 @@ std::optional<TrainingSampling> LegacyTrainingSampling(const YAML::Node& config,
     ReadOptional(source, path + "sampling.", sampling, "clip_to_box", &s.clip_to_box);
     ReadOptional(source, path + "sampling.", sampling, "clip_margin", &s.clip_margin);
     ReadOptional(source, path + "sampling.", sampling, "importance_samples", &s.importance_samples);
+    ReadOptional(source, path + "sampling.", sampling, "min_sdf_sample", &s.min_sdf_sample);
   }
   return s;
 }
@@ -358,6 +359,9 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
     }
     if (s.importance_samples > 0) {  // absent in files of models trained without it
       out << YAML::Key << "importance_samples" << YAML::Value << s.importance_samples;
+    }
+    if (s.min_sdf_sample) {  // absent in files of models trained without it
+      out << YAML::Key << "min_sdf_sample" << YAML::Value << "true";
     }
     out << YAML::EndMap;
   }
@@ -476,6 +480,9 @@ void ReadOptions(const std::string& yaml_path, const YAML::Node& root, ModelOpti
     }
     if (s["importance_samples"].IsDefined()) {
       ReadRequired(source, s, "importance_samples", &t.importance_samples);
+    }
+    if (s["min_sdf_sample"].IsDefined()) {
+      ReadRequired(source, s, "min_sdf_sample", &t.min_sdf_sample);
     }
     if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0) || !(t.clip_margin >= 0) ||
         t.importance_samples < 0) {

@@ -96,6 +96,7 @@ void VisitFields(V& v, SamplingConfig& o) {
   v("active_fraction", o.active_fraction);
   v("importance_depth", o.importance_depth);
   v("importance_samples", o.importance_samples);
+  v("min_sdf_sample", o.min_sdf_sample);
   v("near_far_margin", o.near_far_margin);
   v("clip_to_box", o.clip_to_box);
   v("clip_margin", o.clip_margin);
@@ -688,6 +689,11 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   if (s.sampling.importance_samples > 0 && !s.sampling.importance_depth) {
     c.Fail(g + ".importance_samples", "needs sampling.importance_depth: true (got ",
            s.sampling.importance_samples, " added samples without the importance pass)");
+  }
+  if (s.sampling.min_sdf_sample && !s.sampling.importance_depth) {
+    c.Fail(g + ".min_sdf_sample",
+           "needs sampling.importance_depth: true (the minimum comes from the importance pass's "
+           "first rendering)");
   }
   c.NonNegative(g + ".near_far_margin", s.sampling.near_far_margin);
   c.NonNegative(g + ".clip_margin", s.sampling.clip_margin);

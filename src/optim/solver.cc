@@ -88,7 +88,8 @@ SolveResult Solver::Run(const SolveOptions& options) {
     const StageConfig& last = config_.stages.back();
     model_->set_training_sampling(TrainingSampling{
         last.samples_per_ray, last.sampling.near_far_margin, last.sampling.importance_depth,
-        last.sampling.clip_to_box, last.sampling.clip_margin, last.sampling.importance_samples});
+        last.sampling.clip_to_box, last.sampling.clip_margin, last.sampling.importance_samples,
+        last.sampling.min_sdf_sample});
   }
   SigintGuard guard;
   if (config_.threads > 0) SetNumThreads(config_.threads);
@@ -340,7 +341,8 @@ std::vector<Ray> Solver::SampleRays(const StageConfig& stage, double fraction,
     coarse.EvaluateAll(false);
     for (int r = 0; r < coarse.num_rays(); ++r) {
       ImportanceResample(coarse.evaluation(r).tau, stage.sampling.importance_samples,
-                         &rays[r].samples, rng);
+                         &rays[r].samples, rng,
+                         stage.sampling.min_sdf_sample ? &coarse.evaluation(r).sdf : nullptr);
     }
   }
   return rays;

@@ -179,7 +179,8 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
         batch.EvaluateRays(ray_ptrs, params, false, &evals);
         for (size_t r = 0; r < rays.size(); ++r) {
           std::mt19937 rng(pixel_seed(pass, begin + static_cast<int>(r)));
-          ImportanceResample(evals[r].tau, options.importance_samples, &rays[r].samples, &rng);
+          ImportanceResample(evals[r].tau, options.importance_samples, &rays[r].samples, &rng,
+                             options.min_sdf_sample ? &evals[r].sdf : nullptr);
         }
       }
       for (Ray& ray : rays) {

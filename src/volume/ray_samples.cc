@@ -58,8 +58,28 @@ bool ClipDepthsToBox(const Pose& camera_from_root, const Eigen::AlignedBox3d& ca
   return true;
 }
 
+bool SdfMinimumDepth(const std::vector<double>& depths, const std::vector<double>& sdf,
+                     double* depth) {
+  const int n = static_cast<int>(depths.size());
+  CHECK_EQ(static_cast<int>(sdf.size()), n);
+  if (n < 3) return false;
+  const int k = static_cast<int>(std::min_element(sdf.begin(), sdf.end()) - sdf.begin());
+  if (k == 0 || k == n - 1) return false;
+  // Vertex of the parabola through (z_j, f_j), j = k - 1, k, k + 1 (any
+  // spacing). f_k is the smallest, so the parabola opens upwards (or is a
+  // line through three equal values: den == 0) and its vertex lies in
+  // [z_{k-1}, z_{k+1}]; the clamp only guards rounding.
+  const double z0 = depths[k - 1], z1 = depths[k], z2 = depths[k + 1];
+  const double f0 = sdf[k - 1], f1 = sdf[k], f2 = sdf[k + 1];
+  const double a = (z1 - z0) * (f1 - f2), b = (z1 - z2) * (f1 - f0);
+  const double den = a - b;
+  if (!(std::abs(den) > 0.0)) return false;
+  *depth = std::clamp(z1 - 0.5 * ((z1 - z0) * a - (z1 - z2) * b) / den, z0, z2);
+  return true;
+}
+
 void ImportanceResample(const std::vector<double>& tau, int added, RaySamples* samples,
-                        std::mt19937* rng) {
+                        std::mt19937* rng, const std::vector<double>* sdf) {
   const int n = static_cast<int>(samples->depths.size());
   CHECK_EQ(static_cast<int>(tau.size()), n);
   CHECK_GE(added, 0);
@@ -80,12 +100,19 @@ void ImportanceResample(const std::vector<double>& tau, int added, RaySamples* s
   std::vector<double> depths;
   depths.reserve(total);
   for (int i = 0; i < n; i += keep_every) depths.push_back(samples->depths[i]);
+  const int kept = static_cast<int>(depths.size());
   while (static_cast<int>(depths.size()) < total) {
     const double u = unit(*rng) * cdf[n];
     const int i =
         std::min<int>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin() - 1, n - 1);
     const double f = (u - cdf[i]) / std::max(cdf[i + 1] - cdf[i], 1e-300);
     depths.push_back(lo[i] + f * (hi[i] - lo[i]));
+  }
+  if (sdf != nullptr && total > kept) {
+    // The last drawn sample goes to the SDF minimum (header).
+    CHECK_EQ(static_cast<int>(sdf->size()), n);
+    double z = 0.0;
+    if (SdfMinimumDepth(samples->depths, *sdf, &z)) depths.back() = z;
   }
   std::sort(depths.begin(), depths.end());
   const double far = hi[n - 1];

@@ -202,6 +202,12 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   model->set_training_sampling(TrainingSampling{24, 0.15, true, false, 0.1, 40});
   WriteModelFiles(dir.string(), *model);
   EXPECT_EQ(LoadModel(dir.string())->training_sampling()->importance_samples, 40);
+  EXPECT_FALSE(LoadModel(dir.string())->training_sampling()->min_sdf_sample);
+  EXPECT_EQ(ReadText(dir / "model.yaml").find("min_sdf_sample"), std::string::npos);
+  // And the sample at the SDF minimum.
+  model->set_training_sampling(TrainingSampling{24, 0.15, true, false, 0.1, 0, true});
+  WriteModelFiles(dir.string(), *model);
+  EXPECT_TRUE(LoadModel(dir.string())->training_sampling()->min_sdf_sample);
   model->set_training_sampling(TrainingSampling{24, 0.15, true, true, 0.125});
   WriteModelFiles(dir.string(), *model);
   // A negative clip margin in the file is an error naming the key.

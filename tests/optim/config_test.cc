@@ -359,6 +359,11 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
          S(c).sampling.importance_depth = false;
          S(c).sampling.importance_samples = 16;
        }},
+      {"stages[1].sampling.min_sdf_sample",  // the minimum comes from the importance pass
+       [&](SolverConfig* c) {
+         S(c).sampling.importance_depth = false;
+         S(c).sampling.min_sdf_sample = true;
+       }},
       {"stages[1].sampling.flow_gaps[2]",
        [&](SolverConfig* c) {
          S(c).sampling.flow_gaps = {1, 2, 0};
@@ -763,6 +768,7 @@ SolverConfig EveryFieldChanged() {
     s.sampling.active_fraction = 0.15;
     s.sampling.importance_depth = true;
     s.sampling.importance_samples = 19;
+    s.sampling.min_sdf_sample = true;
     s.sampling.near_far_margin = 0.33;
     s.sampling.flow_gaps = {1, 3};
     s.sampling.eikonal_points = 100;
@@ -924,6 +930,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.sampling.unbiased_silhouette, t.sampling.unbiased_silhouette);
     EXPECT_EQ(s.sampling.clip_to_box, t.sampling.clip_to_box);
     EXPECT_EQ(s.sampling.importance_samples, t.sampling.importance_samples);
+    EXPECT_EQ(s.sampling.min_sdf_sample, t.sampling.min_sdf_sample);
     EXPECT_EQ(s.sampling.clip_margin, t.sampling.clip_margin);
     EXPECT_EQ(s.schedule.bone_reinit_at, t.schedule.bone_reinit_at);
     EXPECT_EQ(s.schedule.bone_reinit_keep_motion, t.schedule.bone_reinit_keep_motion);

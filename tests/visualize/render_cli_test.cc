@@ -184,6 +184,9 @@ TEST_F(RenderCli, BadOptionsAreErrorsNamingTheFlag) {
            {"--importance maybe", "--importance"},
            {"--samples -2", "--samples"},
            {"--importance-samples -2", "--importance-samples"},
+           {"--min-sdf-sample maybe", "--min-sdf-sample"},
+           // The test model was trained without the importance pass.
+           {"--min-sdf-sample on", "--min-sdf-sample on: needs the importance pass"},
            {"--jitter-passes -1", "--jitter-passes"}}) {
     const std::string out = Path("bad_option");
     const auto r =
@@ -197,9 +200,9 @@ TEST_F(RenderCli, BadOptionsAreErrorsNamingTheFlag) {
 TEST_F(RenderCli, HelpListsTheOptions) {
   const auto r = RunBanmo("render --help");
   EXPECT_EQ(r.exit_code, 0);
-  for (const char* flag :
-       {"--model", "--data", "--out", "--frames", "--every", "--samples", "--importance-samples",
-        "--jitter-passes", "--mesh-resolution", "--rgb-error-max", "--video", "--turntable"}) {
+  for (const char* flag : {"--model", "--data", "--out", "--frames", "--every", "--samples",
+                           "--importance-samples", "--min-sdf-sample", "--jitter-passes",
+                           "--mesh-resolution", "--rgb-error-max", "--video", "--turntable"}) {
     EXPECT_NE(r.out.find(flag), std::string::npos) << flag;
   }
 }

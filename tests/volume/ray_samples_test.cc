@@ -134,6 +134,74 @@ TEST(ImportanceResample, SingleSampleIsLeftAlone) {
   EXPECT_EQ(s.deltas, before.deltas);
 }
 
+TEST(SdfMinimumDepth, VertexOfTheParabolaExactForAQuadratic) {
+  std::mt19937 rng(11);
+  const RaySamples s = StratifiedSamples(12, 1.0, 5.0, 1.0, /*jitter=*/true, &rng);
+  std::vector<double> sdf;
+  for (double z : s.depths) sdf.push_back(0.8 * (z - 3.37) * (z - 3.37) - 0.05);
+  double z = 0.0;
+  ASSERT_TRUE(SdfMinimumDepth(s.depths, sdf, &z));
+  // Rounding only: three samples about 1/3 apart, values O(1).
+  EXPECT_NEAR(z, 3.37, 1e-12);
+  // The smallest sample first or last: no bracket.
+  std::vector<double> rising;
+  for (double d : s.depths) rising.push_back(d);
+  z = -1.0;
+  EXPECT_FALSE(SdfMinimumDepth(s.depths, rising, &z));
+  EXPECT_EQ(z, -1.0);
+  std::vector<double> falling;
+  for (double d : s.depths) falling.push_back(-d);
+  EXPECT_FALSE(SdfMinimumDepth(s.depths, falling, &z));
+  EXPECT_FALSE(SdfMinimumDepth({1.0, 2.0}, {0.5, 0.1}, &z));
+  // Equal values (collinear): no vertex.
+  EXPECT_FALSE(SdfMinimumDepth({1.0, 2.0, 3.0}, {0.5, 0.5, 0.5}, &z));
+}
+
+// A ray that grazes a sphere: the SDF along it, sqrt(d^2 + (z - c)^2) - r,
+// is smallest (d - r) at the sphere's centre depth c.
+TEST(ImportanceResample, MinSdfSampleLandsWhereTheRayGrazesASphere) {
+  const double c = 4.0, r = 0.3, d = 0.95 * r, beta = 0.02;
+  const auto sphere = [&](double z) { return std::hypot(d, z - c) - r; };
+  for (const int added : {0, 16}) {
+    for (int trial = 0; trial < 20; ++trial) {
+      std::mt19937 rng(100 + trial);
+      RaySamples s = StratifiedSamples(32, 2.0, 6.0, 1.0, /*jitter=*/true, &rng);
+      const RaySamples before = s;
+      std::vector<double> sdf;
+      for (double z : s.depths) sdf.push_back(sphere(z));
+      std::vector<double> tau(sdf.size());
+      CompositeWeights(static_cast<int>(sdf.size()), sdf.data(), std::log(beta), s.deltas.data(),
+                       DensityModel::kNeus, tau.data());
+      ImportanceResample(tau, added, &s, &rng, &sdf);
+      const int total = added > 0 ? 32 + added : 32;
+      ASSERT_EQ(static_cast<int>(s.depths.size()), total);
+      EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end()));
+      for (int i = 0; i<32; i += added> 0 ? 1 : 2) {
+        EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) !=
+                    s.depths.end());
+      }
+      // A sample within 2 % of the chord's half-length of the centre, so the
+      // sampled minimum is the true one to 1e-4 r (the SDF is quadratic
+      // near it with curvature 1 / d).
+      double best = 1e9;
+      for (double z : s.depths) best = std::min(best, sphere(z));
+      EXPECT_NEAR(best, d - r, 1e-4 * r) << "trial " << trial << ", added " << added;
+      // So NeuS's opacity is that of the true minimum, > 1/2 inside the
+      // silhouette: 1 - Phi(d - r) / Phi(f_0) with f_0 >> beta.
+      std::vector<double> after;
+      for (double z : s.depths) after.push_back(sphere(z));
+      std::vector<double> tau_after(after.size());
+      CompositeWeights(total, after.data(), std::log(beta), s.deltas.data(), DensityModel::kNeus,
+                       tau_after.data());
+      double opacity = 0.0;
+      for (double t : tau_after) opacity += t;
+      const double expected = 1.0 - 1.0 / (1.0 + std::exp(-(d - r) / beta));
+      EXPECT_NEAR(opacity, expected, 2e-3) << "trial " << trial << ", added " << added;
+      EXPECT_GT(opacity, 0.5);
+    }
+  }
+}
+
 // Intrinsics of a 100 x 100 camera with focal length 100.
 const Eigen::Vector4d kIntrinsics(100, 100, 50, 50);
 

@@ -67,6 +67,7 @@ using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eig
 struct RayEvaluation {
   std::vector<double> residuals;
   std::vector<double> tau;                   // rendering weights tau_i of the samples (Eq. 4)
+  std::vector<double> sdf;                   // SDF at the samples (canonical, after the warp)
   std::array<int, kNumRayTerms> term_row{};  // first row of each term, -1 if inactive
   std::array<RowMajorMatrix, kNumRayBlocks> jacobians;  // rows x block size
   bool has_jacobians = false;

@@ -87,6 +87,7 @@ struct TrainingSampling {
   bool clip_to_box = false;       // rays clipped to the widened canonical bounds
   double clip_margin = 0.1;       // their widening, fraction of the largest side (>= 0)
   int importance_samples = 0;     // SamplingConfig::importance_samples (>= 0)
+  bool min_sdf_sample = false;    // SamplingConfig::min_sdf_sample
 };
 
 struct FrameParameters {

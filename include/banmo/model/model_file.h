@@ -9,7 +9,9 @@
 //                    field, model/model_options_fields.h, with the model's
 //                    current sizes); canonical_bounds {min, max} and
 //                    training_sampling {samples_per_ray, near_far_margin,
-//                    importance_depth} when recorded (Model::
+//                    importance_depth; clip_to_box, clip_margin,
+//                    importance_samples, min_sdf_sample when set} when
+//                    recorded (Model::
 //                    canonical_bounds(), Model::training_sampling()); videos:
 //                    per video frames, width, height, intrinsics
 //                    [fx, fy, cx, cy]; root_correction: object (G^t =

@@ -129,6 +129,13 @@ struct SamplingConfig {
   // keeps all of them and adds K drawn ones (NeRF's coarse + fine; the paper
   // 64 + 64). ImportanceResample (volume/ray_samples.h).
   int importance_samples = 0;
+  // With importance_depth: the importance pass also puts a sample at each
+  // ray's SDF minimum (the vertex of a parabola through the first pass's
+  // smallest SDF sample and its neighbours) in place of one drawn sample.
+  // NeuS's opacity of a ray is 1 - Phi(f_min) / Phi(f_0): a ray that
+  // grazes a thin part renders it only if a sample lands near f_min.
+  // ImportanceResample (volume/ray_samples.h).
+  bool min_sdf_sample = false;
   double near_far_margin = 0.2;  // +-20 % around the canonical bounds' depth range
   // Each ray's samples span only its part inside the canonical bounds
   // widened by clip_margin times their largest side (ClipDepthsToBox,

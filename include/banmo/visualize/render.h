@@ -57,6 +57,9 @@ struct FrameRenderOptions {
   // 0 redraws half of samples_per_ray, K > 0 keeps them all and adds K, as
   // the solver's sampling.importance_samples.
   int importance_samples = 0;
+  // With importance: one of the drawn samples goes to each ray's SDF
+  // minimum instead, as the solver's sampling.min_sdf_sample.
+  bool min_sdf_sample = false;
   // 0: the samples at their bins' midpoints (one deterministic pass). K > 0:
   // the mean of K passes whose samples are jittered within their bins as the
   // solver draws them (StratifiedSamples with jitter), seeded from
