@@ -113,6 +113,18 @@ void AddRenderOptions(CLI::App* app, RenderArgs* a) {
   app->add_option("--threads", a->threads, "Worker threads (0 = all cores)")->capture_default_str();
 }
 
+// An auto|on|off option: an error naming `flag` for any other value.
+void CheckAutoOnOff(const char* flag, const std::string& value) {
+  if (value != "auto" && value != "on" && value != "off") {
+    ThrowInputError(flag, ": expected auto, on or off, got '", value, "'");
+  }
+}
+
+// A checked auto|on|off option resolved against what the model was trained with.
+bool AutoOnOff(const std::string& value, bool trained) {
+  return value == "on" || (value == "auto" && trained);
+}
+
 // Checks the arguments that need neither the model nor the dataset (before OUT
 // is created); sets the thread count and explicit --bounds.
 void CheckRenderArgs(RenderArgs* a) {
@@ -128,12 +140,8 @@ void CheckRenderArgs(RenderArgs* a) {
   if (a->options.frame.jitter_passes < 0) {
     ThrowInputError("--jitter-passes: expected >= 0, got ", a->options.frame.jitter_passes);
   }
-  if (a->importance != "auto" && a->importance != "on" && a->importance != "off") {
-    ThrowInputError("--importance: expected auto, on or off, got '", a->importance, "'");
-  }
-  if (a->min_sdf_sample != "auto" && a->min_sdf_sample != "on" && a->min_sdf_sample != "off") {
-    ThrowInputError("--min-sdf-sample: expected auto, on or off, got '", a->min_sdf_sample, "'");
-  }
+  CheckAutoOnOff("--importance", a->importance);
+  CheckAutoOnOff("--min-sdf-sample", a->min_sdf_sample);
   if (a->bounds_text != "auto") {
     a->options.frame.canonical_bounds = tools::ParseBoxOption(
         "--bounds", a->bounds_text, "'auto' or 6 numbers xmin,ymin,zmin,xmax,ymax,zmax");
@@ -159,15 +167,13 @@ void SetSampling(const Model& model, const RenderArgs& a, FrameRenderOptions* fr
   }
   if (a.samples > 0) frame->samples_per_ray = a.samples;
   if (a.importance_samples >= 0) frame->importance_samples = a.importance_samples;
-  frame->importance = a.importance == "on" || (a.importance == "auto" && trained_importance);
+  frame->importance = AutoOnOff(a.importance, trained_importance);
   if (a.min_sdf_sample == "on" && !frame->importance) {
     ThrowInputError(
         "--min-sdf-sample on: needs the importance pass (--importance on, or a model "
         "trained with it)");
   }
-  frame->min_sdf_sample =
-      frame->importance &&
-      (a.min_sdf_sample == "on" || (a.min_sdf_sample == "auto" && trained_min_sdf_sample));
+  frame->min_sdf_sample = frame->importance && AutoOnOff(a.min_sdf_sample, trained_min_sdf_sample);
 }
 
 // The (video, frame) pairs of --frames, or every --every-th frame of every
@@ -208,13 +214,15 @@ int DefaultScale(const Model& model) {
 void PrintPlan(const std::string& model_dir, const Model& model, size_t num_frames,
                const RenderSequenceOptions& options, bool explicit_bounds) {
   const Eigen::AlignedBox3d& b = options.frame.canonical_bounds;
-  const std::string importance =
-      !options.frame.importance ? ""
-      : options.frame.importance_samples > 0
-          ? " (+ " + std::to_string(options.frame.importance_samples) + " importance samples" +
-                (options.frame.min_sdf_sample ? ", one at the SDF minimum)" : ")")
-      : options.frame.min_sdf_sample ? " (+ importance resampling, one sample at the SDF minimum)"
-                                     : " (+ importance resampling)";
+  std::string importance;
+  if (options.frame.importance) {
+    importance =
+        options.frame.importance_samples > 0
+            ? " (+ " + std::to_string(options.frame.importance_samples) + " importance samples"
+            : " (+ importance resampling";
+    if (options.frame.min_sdf_sample) importance += ", one sample at the SDF minimum";
+    importance += ")";
+  }
   const std::string jitter =
       options.frame.jitter_passes > 0
           ? ", mean of " + std::to_string(options.frame.jitter_passes) + " jittered passes"

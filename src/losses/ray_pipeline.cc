@@ -493,12 +493,11 @@ bool RayPipeline::RenderingWeights(RayWork& w) {
   // Rendering weights; the 3D cycle (Eq. 19) uses the ray's fixed
   // cycle_tau when set (the minibatch's constants), else these values.
   {
-    std::vector<double> sdf(n);
-    for (int i = 0; i < n; ++i) sdf[i] = fb.sdf(s.field_offset + i);
+    ev.sdf.resize(n);
+    for (int i = 0; i < n; ++i) ev.sdf[i] = fb.sdf(s.field_offset + i);
     ev.tau.resize(n);
-    CompositeWeights(n, sdf.data(), *p.block[kBlockLogBeta], ray.samples.deltas.data(),
+    CompositeWeights(n, ev.sdf.data(), *p.block[kBlockLogBeta], ray.samples.deltas.data(),
                      model.options().density, ev.tau.data());
-    ev.sdf = std::move(sdf);
   }
   w.tau = ray.cycle_tau.empty() ? &ev.tau : &ray.cycle_tau;
   const std::vector<double>& tau = *w.tau;

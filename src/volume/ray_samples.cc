@@ -110,7 +110,6 @@ void ImportanceResample(const std::vector<double>& tau, int added, RaySamples* s
   }
   if (sdf != nullptr && total > kept) {
     // The last drawn sample goes to the SDF minimum (header).
-    CHECK_EQ(static_cast<int>(sdf->size()), n);
     double z = 0.0;
     if (SdfMinimumDepth(samples->depths, *sdf, &z)) depths.back() = z;
   }

@@ -144,8 +144,7 @@ TEST(SdfMinimumDepth, VertexOfTheParabolaExactForAQuadratic) {
   // Rounding only: three samples about 1/3 apart, values O(1).
   EXPECT_NEAR(z, 3.37, 1e-12);
   // The smallest sample first or last: no bracket.
-  std::vector<double> rising;
-  for (double d : s.depths) rising.push_back(d);
+  const std::vector<double> rising = s.depths;
   z = -1.0;
   EXPECT_FALSE(SdfMinimumDepth(s.depths, rising, &z));
   EXPECT_EQ(z, -1.0);
@@ -176,7 +175,8 @@ TEST(ImportanceResample, MinSdfSampleLandsWhereTheRayGrazesASphere) {
       const int total = added > 0 ? 32 + added : 32;
       ASSERT_EQ(static_cast<int>(s.depths.size()), total);
       EXPECT_TRUE(std::is_sorted(s.depths.begin(), s.depths.end()));
-      for (int i = 0; i<32; i += added> 0 ? 1 : 2) {
+      const int keep_every = added > 0 ? 1 : 2;
+      for (int i = 0; i < 32; i += keep_every) {
         EXPECT_TRUE(std::find(s.depths.begin(), s.depths.end(), before.depths[i]) !=
                     s.depths.end());
       }
