@@ -541,7 +541,8 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
                                      const Pose& camera_from_root,
                                      const Eigen::Vector4d& intrinsics, const double* previous,
                                      const BoneRegistrationConfig& config, double* bones_t,
-                                     const FrameSilhouette* silhouette) {
+                                     const FrameSilhouette* silhouette,
+                                     const double* alternative_start) {
   CHECK_GT(num_bones, 0);
   const int B = num_bones;
   ceres::Problem::Options problem_options;
@@ -627,6 +628,23 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
     return norms.empty() ? 0.0 : Median(norms);
   };
   FrameRegistration out;
+  if (alternative_start != nullptr) {
+    // Both starts under the same terms (the coverage ties, made from the
+    // start, are not added yet).
+    auto cost_here = [&] {
+      double cost = 0.0;
+      problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
+      return cost;
+    };
+    const std::vector<double> own(bones_t, bones_t + kPoseSize * B);
+    const double own_cost = cost_here();
+    std::copy(alternative_start, alternative_start + kPoseSize * B, bones_t);
+    if (cost_here() < own_cost) {
+      out.started_from_alternative = true;
+    } else {
+      std::copy(own.begin(), own.end(), bones_t);
+    }
+  }
   out.median_match_px_before = median_match_px();
   const bool coverage = config.coverage_weight > 0 && silhouette != nullptr &&
                         !silhouette->object_pixels.empty() && !proxy.points.empty();
@@ -711,7 +729,12 @@ std::string BoneRegistrationReport::Describe() const {
                 "median match %.2f -> %.2f px; bones turned %.1f deg on average",
                 frames, surface_vertices, pairs, seconds, median_match_px_before,
                 median_match_px_after, mean_turn_deg);
-  return text;
+  std::string out = text;
+  if (own_starts >= 0) {
+    out += "; " + std::to_string(own_starts) +
+           " frames started from their own motion rather than the previous frame's fit";
+  }
+  return out;
 }
 
 BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
@@ -753,13 +776,14 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
   const Eigen::MatrixXd embedding =
       MeanFeatureEmbedding(*model, dataset, proxy, config.visible_tolerance);
 
-  // Frames of a video in order, each from the previous one's fit; videos in
+  // Frames of a video in order, each (config.start) from the previous one's fit; videos in
   // parallel (each writes only its own frames' bones_t and results).
   const int V = model->num_videos();
   std::vector<int> first(V + 1, 0);
   for (int v = 0; v < V; ++v) first[v + 1] = first[v] + dataset.videos[v].frames.size();
   std::vector<FrameRegistration> results(first[V]);
   std::vector<char> done(first[V], 0);
+  std::vector<char> own_start(first[V], 0);  // lower_cost chose the frame's own transforms
   ParallelFor(V, [&](int begin, int end) {
     for (int v = begin; v < end; ++v) {
       const double* previous = nullptr;
@@ -770,28 +794,38 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
         const int k = first[v] + t;
         const FrameMatches matches = MatchFrameFeatures(
             embedding, f, config.match_pixels, seed + 7919u * static_cast<std::uint32_t>(k + 1));
-        if (previous != nullptr) std::copy(previous, previous + kPoseSize * B, bones_t);
+        // The start: the previous fit, the frame's own transforms, or the
+        // cheaper (RegisterFrameBones' alternative_start).
+        const double* alternative = nullptr;
+        if (previous != nullptr && config.start == RegistrationStart::kPrevious) {
+          std::copy(previous, previous + kPoseSize * B, bones_t);
+        } else if (config.start == RegistrationStart::kLowerCost) {
+          alternative = previous;
+        }
         FrameSilhouette silhouette;
         if (config.mask_weight > 0) silhouette.outside_distance = MaskOutsideDistance(f.mask);
         if (config.coverage_weight > 0) {
           silhouette.object_pixels = SampleObjectPixels(
               f.mask, config.coverage_pixels, seed + 104729u * static_cast<std::uint32_t>(k + 1));
         }
-        results[k] =
-            RegisterFrameBones(proxy, matches, B, model->bones(), model->RootPose(v, t),
-                               model->video(v).intrinsics, previous, config, bones_t, &silhouette);
+        results[k] = RegisterFrameBones(proxy, matches, B, model->bones(), model->RootPose(v, t),
+                                        model->video(v).intrinsics, previous, config, bones_t,
+                                        &silhouette, alternative);
         done[k] = 1;
+        own_start[k] = alternative != nullptr && !results[k].started_from_alternative;
         previous = bones_t;
       }
     }
   });
   std::vector<double> before, after;
   double turn = 0.0;
+  int own = 0;
   for (int v = 0; v < V; ++v) {
     for (int t = 0; t < static_cast<int>(dataset.videos[v].frames.size()); ++t) {
       const int k = first[v] + t;
       if (!done[k]) continue;
       ++report.frames;
+      own += own_start[k];
       before.push_back(results[k].median_match_px_before);
       after.push_back(results[k].median_match_px_after);
       const double* bones_t = model->frame(v, t).bones_t.data();
@@ -809,6 +843,7 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
   report.median_match_px_before = Median(before);
   report.median_match_px_after = Median(after);
   report.mean_turn_deg = turn / report.frames;
+  if (config.start == RegistrationStart::kLowerCost) report.own_starts = own;
   report.seconds = timer.Seconds();
   return report;
 }

@@ -154,6 +154,7 @@ void VisitFields(V& v, BoneRegistrationConfig& o) {
   v("coverage_weight", o.coverage_weight);
   v("coverage_pixels", o.coverage_pixels);
   v("coverage_rounds", o.coverage_rounds);
+  v("start", o.start);
 }
 
 template <class V>

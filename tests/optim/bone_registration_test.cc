@@ -323,33 +323,47 @@ BarScene MakeBarScene(int n) {
   return bar;
 }
 
+// The bar with both bones moved (bone 1 by 35 deg, mostly about the view
+// axis), seen from 3 units, and every proxy vertex matched to its exact
+// pixel.
+struct ExactMatchCase {
+  static constexpr int B = BarScene::B;
+  BarScene bar = MakeBarScene(400);
+  RegistrationProxy proxy = MakeRegistrationProxy(bar.surface, bar.weights, 300, 0.15, 40, 5);
+  std::vector<double> truth = std::vector<double>(kPoseSize * B);
+  Pose g = PoseFromAngleAxis(Eigen::Vector3d(0.3, 0, 0), Eigen::Vector3d(0, 0, 3));
+  Eigen::Vector4d k = Eigen::Vector4d(300, 300, 128, 128);
+  FrameMatches matches;
+  ExactMatchCase() {
+    Eigen::Map<Pose>(truth.data()) = TurnAbout(
+        Eigen::Vector3d(0, 0.05, 0), Eigen::Vector3d(-0.4, 0, 0), Eigen::Vector3d::Zero());
+    Eigen::Map<Pose>(truth.data() + kPoseSize) = TurnAbout(
+        Eigen::Vector3d(0, 0.1, 0.6), Eigen::Vector3d(0.4, 0, 0), Eigen::Vector3d(0.0, 0.02, 0.0));
+    for (size_t i = 0; i < proxy.points.size(); ++i) {
+      const SkinnedPoint& p = proxy.points[i];
+      Eigen::Vector3d y = Eigen::Vector3d::Zero();
+      for (size_t j = 0; j < p.bones.size(); ++j) {
+        y += p.weights[j] *
+             Apply(Eigen::Map<const Pose>(truth.data() + kPoseSize * p.bones[j]), p.x);
+      }
+      const Eigen::Vector3d c = Apply(g, y);
+      matches.vertex.push_back(static_cast<int>(i));
+      matches.pixel.emplace_back(k[0] * c.x() / c.z() + k[2], k[1] * c.y() / c.z() + k[3]);
+    }
+  }
+};
+
 TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
-  const int B = BarScene::B;
-  const BarScene bar = MakeBarScene(400);
-  const std::vector<double>& bones = bar.bones;
-  const RegistrationProxy proxy = MakeRegistrationProxy(bar.surface, bar.weights, 300, 0.15, 40, 5);
+  const ExactMatchCase scene;
+  const int B = ExactMatchCase::B;
+  const std::vector<double>& bones = scene.bar.bones;
+  const RegistrationProxy& proxy = scene.proxy;
   ASSERT_EQ(proxy.points.size(), 300u);
   ASSERT_EQ(proxy.pairs.size(), 1u);
-
-  std::vector<double> truth(kPoseSize * B);
-  Eigen::Map<Pose>(truth.data()) =
-      TurnAbout(Eigen::Vector3d(0, 0.05, 0), Eigen::Vector3d(-0.4, 0, 0), Eigen::Vector3d::Zero());
-  const Eigen::Vector3d w1(0, 0.1, 0.6);  // 35 deg, mostly about the view axis
-  Eigen::Map<Pose>(truth.data() + kPoseSize) =
-      TurnAbout(w1, Eigen::Vector3d(0.4, 0, 0), Eigen::Vector3d(0.0, 0.02, 0.0));
-  const Pose g = PoseFromAngleAxis(Eigen::Vector3d(0.3, 0, 0), Eigen::Vector3d(0, 0, 3));
-  const Eigen::Vector4d k(300, 300, 128, 128);
-  FrameMatches matches;
-  for (size_t i = 0; i < proxy.points.size(); ++i) {
-    const SkinnedPoint& p = proxy.points[i];
-    Eigen::Vector3d y = Eigen::Vector3d::Zero();
-    for (size_t j = 0; j < p.bones.size(); ++j) {
-      y += p.weights[j] * Apply(Eigen::Map<const Pose>(truth.data() + kPoseSize * p.bones[j]), p.x);
-    }
-    const Eigen::Vector3d c = Apply(g, y);
-    matches.vertex.push_back(static_cast<int>(i));
-    matches.pixel.emplace_back(k[0] * c.x() / c.z() + k[2], k[1] * c.y() / c.z() + k[3]);
-  }
+  const std::vector<double>& truth = scene.truth;
+  const Pose& g = scene.g;
+  const Eigen::Vector4d& k = scene.k;
+  const FrameMatches& matches = scene.matches;
   BoneRegistrationConfig config;
   config.smooth_weight = 0.0;  // exact matches need no prior; the joint
   config.rest_weight = 0.0;    // term is not exact for a moved joint
@@ -377,6 +391,48 @@ TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
     EXPECT_NEAR(rest[kPoseSize * b], 1.0, 1e-12);
     for (int i = 1; i < kPoseSize; ++i) EXPECT_NEAR(rest[kPoseSize * b + i], 0.0, 1e-12);
   }
+}
+
+// With an alternative start the fit starts from the cheaper of the two
+// (bones_t's own value on a tie); the report counts the frames that kept
+// their own.
+TEST(BoneRegistration, FrameFitStartsFromTheCheaperOfTwoStarts) {
+  const ExactMatchCase scene;
+  const int B = ExactMatchCase::B;
+  BoneRegistrationConfig config;
+  config.smooth_weight = 0.0;  // as above: the truth costs nothing
+  config.rest_weight = 0.0;
+  config.joint_weight = 0.0;
+  config.iterations = 1;  // the start shows in the fit's first cost
+  const std::vector<double> rest = IdentityBoneTransforms(B);
+  auto fit = [&](const std::vector<double>& own, const std::vector<double>* alternative) {
+    std::vector<double> bones_t = own;
+    return RegisterFrameBones(scene.proxy, scene.matches, B, scene.bar.bones.data(), scene.g,
+                              scene.k, nullptr, config, bones_t.data(), nullptr,
+                              alternative != nullptr ? alternative->data() : nullptr);
+  };
+  const FrameRegistration from_rest = fit(rest, nullptr);
+  const FrameRegistration from_truth = fit(scene.truth, nullptr);
+  ASSERT_GT(from_rest.initial_cost, 100 * from_truth.initial_cost);
+  ASSERT_GT(from_rest.median_match_px_before, 5.0);
+
+  const FrameRegistration own_wins = fit(scene.truth, &rest);
+  EXPECT_FALSE(own_wins.started_from_alternative);
+  EXPECT_EQ(own_wins.initial_cost, from_truth.initial_cost);
+  const FrameRegistration alternative_wins = fit(rest, &scene.truth);
+  EXPECT_TRUE(alternative_wins.started_from_alternative);
+  EXPECT_EQ(alternative_wins.initial_cost, from_truth.initial_cost);
+  EXPECT_EQ(alternative_wins.median_match_px_before, from_truth.median_match_px_before);
+  const FrameRegistration tie = fit(rest, &rest);
+  EXPECT_FALSE(tie.started_from_alternative);
+  EXPECT_EQ(tie.initial_cost, from_rest.initial_cost);
+
+  BoneRegistrationReport report;
+  report.registered = true;
+  EXPECT_EQ(report.Describe().find("own motion"), std::string::npos);
+  report.own_starts = 7;
+  EXPECT_NE(report.Describe().find("; 7 frames started from their own motion"), std::string::npos)
+      << report.Describe();
 }
 
 // The bar with bone 1 turned by 30 deg about the view axis, seen from 3

@@ -814,6 +814,7 @@ SolverConfig EveryFieldChanged() {
     s.bone_registration.coverage_weight = 1.5 + i;
     s.bone_registration.coverage_pixels = 300 + i;
     s.bone_registration.coverage_rounds = 4 + i;
+    s.bone_registration.start = i == 0 ? RegistrationStart::kLowerCost : RegistrationStart::kOwn;
     s.bone_steps_about_centres = i == 0;  // the two are exclusive
     s.bone_steps_articulated = i != 0;
     s.checkpoint_every = 50;
@@ -964,6 +965,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(r.coverage_weight, u.coverage_weight);
     EXPECT_EQ(r.coverage_pixels, u.coverage_pixels);
     EXPECT_EQ(r.coverage_rounds, u.coverage_rounds);
+    EXPECT_EQ(r.start, u.start);
     EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
     EXPECT_EQ(s.bone_steps_articulated, t.bone_steps_articulated);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
@@ -1187,6 +1189,9 @@ TEST(SolverConfig, UnknownOptionNamesListTheChoices) {
       {"stages:\n  - losses:\n      flow: {robust: {type: l1}}\n",
        "t.yaml: stages[0].losses.flow.robust.type: expected one of {none, huber, cauchy, soft_l1, "
        "arctan, tolerant}, got 'l1' (line 3)"},
+      {"stages:\n  - bone_registration: {at: [0.5], start: next}\n",
+       "t.yaml: stages[0].bone_registration.start: expected one of {previous, own, lower_cost}, "
+       "got 'next' (line 2)"},
       {"model: {density: nerf}\nstages: [{}]\n",
        "t.yaml: model.density: expected one of {volsdf, neus}, got 'nerf' (line 1)"},
       {"defaults:\n  step_rule: [adam]\nstages: [{}]\n",

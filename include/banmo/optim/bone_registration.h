@@ -21,7 +21,8 @@
 // 3. Matches: up to match_pixels object pixels of each frame, each matched
 //    to the proxy vertex of the most similar (cosine) embedding.
 // 4. Per video, frame after frame (each frame starting from the previous
-//    frame's fit), Levenberg-Marquardt on the frame's B bone transforms
+//    frame's fit, its own current transforms, or the cheaper of the two:
+//    config.start), Levenberg-Marquardt on the frame's B bone transforms
 //    (each turning about its rest centre, MakeStackedPivotPoseManifold), the
 //    root pose fixed, residuals in pixels:
 //      match   the projection of sum_b w_b J_b x (then G^t) minus its
@@ -193,22 +194,27 @@ struct FrameSilhouette {
 std::vector<Eigen::Vector2d> SampleObjectPixels(const cv::Mat& mask, int count, std::uint32_t seed);
 
 // Step 4 for one frame: fits bones_t (kPoseSize B, in and out) from its
-// value; `previous` is the previous frame's fit (null: the identity);
-// `silhouette` the frame's silhouette data (null: no mask or coverage
-// term).
+// value; `previous` is the previous frame's fit (null: the identity), the
+// reference of the smooth term; `silhouette` the frame's silhouette data
+// (null: no mask or coverage term). With `alternative_start` (kPoseSize B)
+// the fit starts from whichever of bones_t's value and alternative_start
+// the terms but the coverage ties (which are made from the start) cost
+// less; bones_t's value wins a tie.
 struct FrameRegistration {
   double initial_cost = 0.0;
   double final_cost = 0.0;
   double median_match_px_before = 0.0;  // |match residual|, median
   double median_match_px_after = 0.0;
   int iterations = 0;
+  bool started_from_alternative = false;
 };
 FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const FrameMatches& matches,
                                      int num_bones, const double* bones,
                                      const Pose& camera_from_root,
                                      const Eigen::Vector4d& intrinsics, const double* previous,
                                      const BoneRegistrationConfig& config, double* bones_t,
-                                     const FrameSilhouette* silhouette = nullptr);
+                                     const FrameSilhouette* silhouette = nullptr,
+                                     const double* alternative_start = nullptr);
 
 struct BoneRegistrationReport {
   bool registered = false;
@@ -220,6 +226,9 @@ struct BoneRegistrationReport {
   double median_match_px_before = 0.0;  // over frames (each frame's median)
   double median_match_px_after = 0.0;
   double mean_turn_deg = 0.0;  // bones' mean turn from the rest pose after the fit
+  // start lower_cost: frames whose fit started from their own transforms
+  // rather than the previous frame's fit (-1: no per-frame choice).
+  int own_starts = -1;
   std::string Describe() const;
 };
 

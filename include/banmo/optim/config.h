@@ -25,6 +25,7 @@ enum class LinearSolverType { kCgnr, kIterativeSchur };
 enum class LrSchedule { kOneCycle, kConstant };
 enum class RobustLossType { kNone, kHuber, kCauchy, kSoftL1, kArctan, kTolerant };
 enum class BoneSites { kSurface, kSkeleton };
+enum class RegistrationStart { kPrevious, kOwn, kLowerCost };
 
 template <>
 struct EnumNames<StepRule> {
@@ -53,6 +54,13 @@ template <>
 struct EnumNames<BoneSites> {
   static constexpr std::pair<BoneSites, const char*> kNames[] = {
       {BoneSites::kSurface, "surface"}, {BoneSites::kSkeleton, "skeleton"}};
+};
+template <>
+struct EnumNames<RegistrationStart> {
+  static constexpr std::pair<RegistrationStart, const char*> kNames[] = {
+      {RegistrationStart::kPrevious, "previous"},
+      {RegistrationStart::kOwn, "own"},
+      {RegistrationStart::kLowerCost, "lower_cost"}};
 };
 
 // Robust loss applied to one loss term's residual block (Ceres LossFunction).
@@ -238,6 +246,10 @@ struct BoneRegistrationConfig {
   double coverage_weight = 0.0;     // object pixels pulled to the nearest fitted vertex (0 = off)
   int coverage_pixels = 500;        // object pixels of the coverage term per frame
   int coverage_rounds = 10;         // nearest-vertex ties made this many times (LM solves)
+  // Where a frame's fit starts (a video's first frame: its own transforms):
+  // the previous frame's fit, the frame's own current transforms, or
+  // whichever of the two the terms but the coverage ties cost less.
+  RegistrationStart start = RegistrationStart::kPrevious;
 };
 
 // Parameter groups held constant (ceres SetParameterBlockConstant):
