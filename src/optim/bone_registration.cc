@@ -776,8 +776,8 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
   const Eigen::MatrixXd embedding =
       MeanFeatureEmbedding(*model, dataset, proxy, config.visible_tolerance);
 
-  // Frames of a video in order, each (config.start) from the previous one's fit; videos in
-  // parallel (each writes only its own frames' bones_t and results).
+  // Frames of a video in order, each started as config.start says; videos
+  // in parallel (each writes only its own frames' bones_t and results).
   const int V = model->num_videos();
   std::vector<int> first(V + 1, 0);
   for (int v = 0; v < V; ++v) first[v + 1] = first[v] + dataset.videos[v].frames.size();

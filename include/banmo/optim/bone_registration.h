@@ -206,7 +206,7 @@ struct FrameRegistration {
   double median_match_px_before = 0.0;  // |match residual|, median
   double median_match_px_after = 0.0;
   int iterations = 0;
-  bool started_from_alternative = false;
+  bool started_from_alternative = false;  // alternative_start was the cheaper
 };
 FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const FrameMatches& matches,
                                      int num_bones, const double* bones,
