@@ -783,7 +783,6 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
   for (int v = 0; v < V; ++v) first[v + 1] = first[v] + dataset.videos[v].frames.size();
   std::vector<FrameRegistration> results(first[V]);
   std::vector<char> done(first[V], 0);
-  std::vector<char> own_start(first[V], 0);  // lower_cost chose the frame's own transforms
   ParallelFor(V, [&](int begin, int end) {
     for (int v = begin; v < end; ++v) {
       const double* previous = nullptr;
@@ -812,7 +811,6 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
                                         model->video(v).intrinsics, previous, config, bones_t,
                                         &silhouette, alternative);
         done[k] = 1;
-        own_start[k] = alternative != nullptr && !results[k].started_from_alternative;
         previous = bones_t;
       }
     }
@@ -821,11 +819,13 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
   double turn = 0.0;
   int own = 0;
   for (int v = 0; v < V; ++v) {
+    bool had_previous = false;  // lower_cost offered this frame the previous fit
     for (int t = 0; t < static_cast<int>(dataset.videos[v].frames.size()); ++t) {
       const int k = first[v] + t;
       if (!done[k]) continue;
       ++report.frames;
-      own += own_start[k];
+      if (had_previous && !results[k].started_from_alternative) ++own;
+      had_previous = true;
       before.push_back(results[k].median_match_px_before);
       after.push_back(results[k].median_match_px_after);
       const double* bones_t = model->frame(v, t).bones_t.data();
