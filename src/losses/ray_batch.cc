@@ -109,7 +109,8 @@ void RayBatch::SetRays(std::vector<Ray> rays) {
   std::vector<RayParameters> tau_params;
   std::vector<int> tau_index;
   for (int r = 0; r < num_rays(); ++r) {
-    if (rays_[r].HasTerm(LossTerm::kCycle3d, options_.weights) && rays_[r].cycle_tau.empty()) {
+    if (options_.hold_cycle_tau && rays_[r].HasTerm(LossTerm::kCycle3d, options_.weights) &&
+        rays_[r].cycle_tau.empty()) {
       need_tau.push_back(&rays_[r]);
       tau_params.push_back(ModelParameters(rays_[r]));
       tau_index.push_back(r);

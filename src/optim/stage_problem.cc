@@ -36,6 +36,10 @@ RayBatchOptions BatchOptions(const StageConfig& stage) {
   o.match_top_k = stage.sampling.match_top_k;
   o.feature_render_embedding_only = stage.losses.feature_render_embedding_only;
   o.matcher.exact = true;  // deterministic (FLANN's trees are randomised)
+  // Adam (and the alternate rule's Adam on the stage's batch; its pose
+  // solves have batches of their own, without the 3D cycle) evaluates the
+  // minibatch once, where SetRays left it.
+  o.hold_cycle_tau = stage.step_rule == StepRule::kLm;
   return o;
 }
 

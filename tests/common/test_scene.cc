@@ -86,6 +86,7 @@ TestScene MakeTestScene(const TestSceneOptions& o) {
   bo.matcher.exact = true;
   bo.skinning_jacobian_cutoff = o.skinning_jacobian_cutoff;
   bo.feature_render_embedding_only = o.feature_render_embedding_only;
+  bo.hold_cycle_tau = o.hold_cycle_tau;
   scene.batch = std::make_unique<RayBatch>(&m, bo);
   Eigen::Matrix3Xd grid(3, o.grid_points);
   for (int i = 0; i < o.grid_points; ++i)

@@ -38,6 +38,7 @@ struct TestSceneOptions {
   // equal the full-Jet reference to rounding.
   double skinning_jacobian_cutoff = 0.0;
   bool feature_render_embedding_only = false;  // RayBatchOptions'
+  bool hold_cycle_tau = true;                  // RayBatchOptions'
   uint32_t seed = 7;
   // The weights the golden values were generated with (not the config's
   // defaults): rgb, silhouette, flow, feature_match, cycle_2d, feature_render,

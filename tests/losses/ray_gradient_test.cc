@@ -72,6 +72,7 @@ struct Case {
   bool huber;  // Huber(0.1) on rgb, flow and the 3D cycle; others plain
   bool delta_skinning = false;
   bool feature_render_embedding_only = false;
+  bool hold_cycle_tau = true;
 };
 
 class RayGradient : public ::testing::TestWithParam<Case> {};
@@ -82,6 +83,7 @@ TEST_P(RayGradient, EqualsRhoPrimeJacobianTransposeResidual) {
   o.num_bones = c.num_bones;
   o.delta_skinning = c.delta_skinning;
   o.feature_render_embedding_only = c.feature_render_embedding_only;
+  o.hold_cycle_tau = c.hold_cycle_tau;
   TestScene scene = MakeTestScene(o);
   RayBatch& batch = *scene.batch;
   ceres::HuberLoss huber(0.1);
@@ -117,6 +119,7 @@ TEST_P(RayGradient, EqualsCeresProblemEvaluateWithConstantBlocks) {
   o.num_bones = c.num_bones;
   o.delta_skinning = c.delta_skinning;
   o.feature_render_embedding_only = c.feature_render_embedding_only;
+  o.hold_cycle_tau = c.hold_cycle_tau;
   TestScene scene = MakeTestScene(o);
   Model& model = *scene.model;
   RayBatch& batch = *scene.batch;
@@ -180,7 +183,8 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"no_bones_plain", 0, false}, Case{"no_bones_huber", 0, true},
                       Case{"delta_skinning_plain", 3, false, true},
                       Case{"delta_skinning_huber", 3, true, true},
-                      Case{"feature_render_embedding_only", 3, true, false, true}),
+                      Case{"feature_render_embedding_only", 3, true, false, true},
+                      Case{"own_cycle_tau", 3, true, true, false, false}),
     [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
 
 }  // namespace

@@ -388,6 +388,80 @@ TEST(RayBatch, FieldJacobiansOffKeepsEveryOtherBlock) {
   }
 }
 
+// Without held 3D-cycle weights (RayBatchOptions::hold_cycle_tau false, the
+// Adam stages) SetRays skips the forward pass; an evaluation at SetRays'
+// parameters takes the same tau_i from its own composite, without their
+// derivative, so residuals and Jacobians equal the held batch's to rounding
+// (the same double operations, in a batch with or without Jacobians:
+// 1e-12 relative). Away from that point the held batch keeps the old
+// weights and the other follows the parameters: it equals a held batch
+// rebuilt there.
+TEST(RayBatch, OwnCycleTauEqualsHeldAtSetRaysParameters) {
+  for (bool delta : {false, true}) {
+    TestSceneOptions options = delta ? DeltaSceneOptions() : TestSceneOptions();
+    TestScene held = MakeTestScene(options);
+    options.hold_cycle_tau = false;
+    TestScene own = MakeTestScene(options);
+    const int rays = held.batch->num_rays();
+    for (int r = 0; r < rays; ++r) {
+      ASSERT_FALSE(held.batch->rays()[r].cycle_tau.empty());
+      ASSERT_TRUE(own.batch->rays()[r].cycle_tau.empty());
+    }
+    auto expect_near = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b, double tolerance,
+                          const std::string& what) {
+      ASSERT_EQ(a.size(), b.size()) << what;
+      EXPECT_LE((a - b).cwiseAbs().maxCoeff(), tolerance * std::max(1.0, b.cwiseAbs().maxCoeff()))
+          << what;
+    };
+    for (int r = 0; r < rays; ++r) {
+      const std::string what = "ray " + std::to_string(r) + (delta ? " (delta)" : "");
+      auto a = EvaluateCost(*own.batch->MakeCostFunction(r, LossTerm::kCycle3d),
+                            own.batch->TermParameterBlocks(r, LossTerm::kCycle3d));
+      auto b = EvaluateCost(*held.batch->MakeCostFunction(r, LossTerm::kCycle3d),
+                            held.batch->TermParameterBlocks(r, LossTerm::kCycle3d));
+      ASSERT_TRUE(a.ok && b.ok);
+      expect_near(a.residuals, b.residuals, 1e-12, what);
+      EXPECT_LT(RelativeJacobianError(a, b), 1e-12) << what;
+      // The full-Jet twin with the same empty cycle_tau.
+      auto c = EvaluateCost(*MakeReferenceCostFunction(*own.batch, r, LossTerm::kCycle3d),
+                            own.batch->TermParameterBlocks(r, LossTerm::kCycle3d));
+      ASSERT_TRUE(c.ok);
+      expect_near(a.residuals, c.residuals, 1e-12, what + " reference");
+      EXPECT_LT(RelativeJacobianError(a, c), kReferenceTolerance) << what << " reference";
+    }
+    // Another point: the SDF moved.
+    for (TestScene* s : {&held, &own}) {
+      for (int k = 0; k < s->model->sdf_size(); ++k) {
+        s->model->sdf()[k] += 0.05 * std::sin(1.0 + k);
+      }
+      s->batch->Invalidate();
+      s->batch->EvaluateAll(false);
+    }
+    std::vector<Ray> rebuilt = held.batch->rays();
+    for (Ray& ray : rebuilt) ray.cycle_tau.clear();
+    TestScene again = MakeTestScene(delta ? DeltaSceneOptions() : TestSceneOptions());
+    for (int k = 0; k < again.model->sdf_size(); ++k) {
+      again.model->sdf()[k] = held.model->sdf()[k];
+    }
+    again.batch->SetRays(std::move(rebuilt));
+    again.batch->EvaluateAll(false);
+    double moved = 0.0;
+    for (int r = 0; r < rays; ++r) {
+      const int row = own.batch->evaluation(r).term_row[static_cast<int>(LossTerm::kCycle3d)];
+      ASSERT_GE(row, 0);
+      const int n = LossTermResiduals(LossTerm::kCycle3d, own.batch->rays()[r].NumSamples());
+      auto rows = [&](const RayBatch& batch) {
+        return Eigen::Map<const Eigen::VectorXd>(batch.evaluation(r).residuals.data() + row, n)
+            .eval();
+      };
+      expect_near(rows(*own.batch), rows(*again.batch), 1e-12,
+                  "moved ray " + std::to_string(r) + (delta ? " (delta)" : ""));
+      moved = std::max(moved, (rows(*own.batch) - rows(*held.batch)).cwiseAbs().maxCoeff());
+    }
+    EXPECT_GT(moved, 1e-6) << "the held weights did not stay at the old point";
+  }
+}
+
 // The solver's default skinning-Jacobian cutoff (RayBatchOptions) leaves
 // out the derivatives of bones whose weight at a point is below it: with 12
 // small bones many samples have such bones, the residuals are unchanged and

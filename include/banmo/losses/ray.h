@@ -51,7 +51,9 @@ struct Ray {
   // tau_i of the 3D cycle (Eq. 19, "tau as constant weight"): the rendering
   // weights at the parameters of the minibatch's start, held fixed during
   // the minibatch so the residual is a function of the parameters and its
-  // Jacobian exact. Filled by RayBatch::SetRays when empty.
+  // Jacobian exact. Filled by RayBatch::SetRays when empty (and the batch
+  // holds them, RayBatchOptions::hold_cycle_tau); empty: each evaluation's
+  // own values, without their derivative.
   std::vector<double> cycle_tau;
 
   int NumSamples() const { return static_cast<int>(samples.depths.size()); }

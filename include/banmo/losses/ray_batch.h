@@ -94,6 +94,15 @@ struct RayBatchOptions {
   // the shape or the motion toward the embedding it has (docs/solver.md,
   // "An embedding regressed on the features").
   bool feature_render_embedding_only = false;
+  // The 3D cycle's rendering weights tau_i (Eq. 19, a constant weight) held
+  // at their values at SetRays' parameters for every evaluation of the
+  // minibatch (Ray::cycle_tau, one forward pass over the cycle rays in
+  // SetRays): a step that evaluates at several points (Ceres' trust region)
+  // needs them. false: each evaluation takes its own tau_i without their
+  // derivative, the same values for a step that evaluates once, at SetRays'
+  // parameters (Adam), without the extra pass (a sixth of a stage-3 batch;
+  // docs/solver.md, "The 3D cycle's weights").
+  bool hold_cycle_tau = true;
 
   // Throws InputError naming the field on a violated constraint.
   void Check() const;
