@@ -246,7 +246,14 @@ void RayPipeline::PlaceSamples() {
 // candidates and the soft-argmax X_hat* (Eq. 15); MLP_Delta at the points
 // the forward warps push.
 void RayPipeline::EvaluateFields() {
-  field.ForwardBatch(sdf_params, color_params, &fb, jacobians);
+  if (!jacobians && !(weights[LossTerm::kRgb] > 0.0)) {
+    // No ray reads a colour (Ray::HasTerm) and nothing is differentiated
+    // (the importance pass's coarse evaluation, silhouette only): the SDF
+    // MLP alone, without the colour MLP.
+    field.ForwardSdfBatch(sdf_params, &fb, false);
+  } else {
+    field.ForwardBatch(sdf_params, color_params, &fb, jacobians);
+  }
   if (total_emb > 0) {
     sb.x.resize(3, total_emb);
     for (int r = 0; r < num_rays; ++r) {

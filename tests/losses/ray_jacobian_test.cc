@@ -462,6 +462,32 @@ TEST(RayBatch, OwnCycleTauEqualsHeldAtSetRaysParameters) {
   }
 }
 
+// A batch without the rgb term evaluated without derivatives (the
+// importance pass's coarse evaluation) runs the SDF MLP alone: its rendering
+// weights, SDF values and silhouette residuals are the same bits as those of
+// a batch with every term.
+TEST(RayBatch, EvaluationWithoutColourKeepsWeightsAndSilhouette) {
+  for (bool delta : {false, true}) {
+    TestSceneOptions options = delta ? DeltaSceneOptions() : TestSceneOptions();
+    TestScene all = MakeTestScene(options);
+    options.weights = RayLossWeights::Only({LossTerm::kSilhouette});
+    TestScene silhouette = MakeTestScene(options);
+    all.batch->EvaluateAll(false);
+    silhouette.batch->EvaluateAll(false);
+    for (int r = 0; r < all.batch->num_rays(); ++r) {
+      const RayEvaluation& a = all.batch->evaluation(r);
+      const RayEvaluation& b = silhouette.batch->evaluation(r);
+      EXPECT_EQ(a.tau, b.tau) << "ray " << r;
+      EXPECT_EQ(a.sdf, b.sdf) << "ray " << r;
+      const int row_a = a.term_row[static_cast<int>(LossTerm::kSilhouette)];
+      const int row_b = b.term_row[static_cast<int>(LossTerm::kSilhouette)];
+      ASSERT_GE(row_a, 0);
+      ASSERT_GE(row_b, 0);
+      EXPECT_EQ(a.residuals[row_a], b.residuals[row_b]) << "ray " << r;
+    }
+  }
+}
+
 // The solver's default skinning-Jacobian cutoff (RayBatchOptions) leaves
 // out the derivatives of bones whose weight at a point is below it: with 12
 // small bones many samples have such bones, the residuals are unchanged and
