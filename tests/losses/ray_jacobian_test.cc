@@ -439,7 +439,8 @@ TEST(RayBatch, OwnCycleTauEqualsHeldAtSetRaysParameters) {
     }
     std::vector<Ray> rebuilt = held.batch->rays();
     for (Ray& ray : rebuilt) ray.cycle_tau.clear();
-    TestScene again = MakeTestScene(delta ? DeltaSceneOptions() : TestSceneOptions());
+    options.hold_cycle_tau = true;
+    TestScene again = MakeTestScene(options);
     for (int k = 0; k < again.model->sdf_size(); ++k) {
       again.model->sdf()[k] = held.model->sdf()[k];
     }
