@@ -42,7 +42,8 @@ int RunSolve(int argc, char** argv) {
   app.add_option("--retarget", retarget_dir,
                  "Model folder (OUT/checkpoint of an earlier solve): keep its shape, colour, "
                  "embedding and bones fixed and fit the poses of this dataset's videos");
-  app.add_option("--seed", seed, "Random seed (overrides the config's)");
+  app.add_option("--seed", seed,
+                 "Random seed (overrides the config's; a --resume continues the checkpoint's)");
   app.add_option("--threads", threads, "Worker threads (0 = all cores; overrides the config)");
   app.add_option("--resolution", resolution, "Marching-cubes resolution of the final meshes")
       ->capture_default_str();
@@ -81,6 +82,17 @@ int RunSolve(int argc, char** argv) {
     if (!fs::exists(out_dir + "/checkpoint/model.yaml") &&
         !fs::exists(out_dir + "/checkpoint.old/model.yaml")) {
       ThrowInputError("--resume: ", out_dir, "/checkpoint does not exist");
+    }
+    // The random state continues from the checkpoint, so a resumed solve
+    // runs with the seed it started with; another --seed would be ignored.
+    if (const std::optional<uint32_t> saved = ReadCheckpointSeed(out_dir + "/checkpoint")) {
+      if (seed >= 0 && static_cast<uint32_t>(seed) != *saved) {
+        ThrowInputError("--seed ", seed, " with --resume: ", out_dir,
+                        "/checkpoint continues the random state of seed ", *saved,
+                        " (a resumed solve is the uninterrupted one); drop --seed, or solve "
+                        "again without --resume");
+      }
+      config.seed = *saved;
     }
   } else if (fs::exists(out_dir, ec) && !fs::is_empty(out_dir, ec) && !overwrite) {
     ThrowInputError("--out ", out_dir,

@@ -96,6 +96,18 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
   fs::remove_all(old, ec);
 }
 
+std::optional<uint32_t> ReadCheckpointSeed(const std::string& dir) {
+  const std::string folder = ResolveModelFolder(dir);
+  const CheckpointInfo info = ReadInfo(folder);
+  try {
+    if (const YAML::Node seed = YAML::Load(info.config)["seed"]) return seed.as<uint32_t>();
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(folder, "/checkpoint.yaml: its config has a malformed seed (", e.what(),
+                    "): the file is damaged; solve again (without --resume)");
+  }
+  return std::nullopt;
+}
+
 std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, CheckpointInfo* info,
                                       std::string* solver_state) {
   const std::string dir = ResolveModelFolder(requested_dir);

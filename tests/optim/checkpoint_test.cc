@@ -61,6 +61,7 @@ TEST(Checkpoint, RoundTripWritesAModelFolderPlusTheSolverFiles) {
   EXPECT_EQ(info.stage, 2);
   EXPECT_EQ(info.batch, 9);
   EXPECT_EQ(info.config, "seed: 1\n");
+  EXPECT_EQ(ReadCheckpointSeed(dir.string()), std::optional<uint32_t>(1));
   EXPECT_EQ(state, "bytes");
   EXPECT_EQ(AllParameters(*back), AllParameters(*model));
   ASSERT_TRUE(back->canonical_bounds().has_value());
@@ -73,6 +74,7 @@ TEST(Checkpoint, RoundTripWritesAModelFolderPlusTheSolverFiles) {
   LoadCheckpoint(dir.string(), &info, &state);
   EXPECT_EQ(info.stage, 3);
   EXPECT_EQ(state, "");
+  EXPECT_FALSE(ReadCheckpointSeed(dir.string()).has_value());  // a config without a seed
   EXPECT_FALSE(fs::exists(dir.string() + ".old"));
 
   // The file names the stage's progress `batch` (format 3).

@@ -125,17 +125,31 @@ TEST(SolveCommand, StopAfterBatchesWritesACheckpointAndResumes) {
          "stages: [{name: one, batches: 3}]\n";
   const std::string solve = "solve --data " + dir + "/data --config " + dir + "/three.yaml --out " +
                             dir + "/out --no-extract --no-eval";
-  const auto stopped = testing::RunBanmo(solve + " --stop-after-batches 2");
+  const auto stopped = testing::RunBanmo(solve + " --seed 3 --stop-after-batches 2");
   ASSERT_EQ(stopped.exit_code, 0) << stopped.out;
   EXPECT_NE(stopped.out.find("stopped as asked (--stop-after-batches): resume with"),
             std::string::npos)
       << stopped.out;
-  std::ifstream info(dir + "/out/checkpoint/checkpoint.yaml");
-  const std::string text((std::istreambuf_iterator<char>(info)), std::istreambuf_iterator<char>());
+  auto read = [](const std::string& path) {
+    std::ifstream in(path);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string text = read(dir + "/out/checkpoint/checkpoint.yaml");
   EXPECT_NE(text.find("batch: 2"), std::string::npos) << text;
+  // Another seed cannot take effect on a resume (the random state is the
+  // checkpoint's): an error naming both, and nothing written.
+  const std::string config = read(dir + "/out/config.yaml");
+  const auto reseeded = testing::RunBanmo(solve + " --resume --seed 7");
+  EXPECT_EQ(reseeded.exit_code, 2) << reseeded.out;
+  EXPECT_NE(reseeded.out.find("--seed 7 with --resume"), std::string::npos) << reseeded.out;
+  EXPECT_NE(reseeded.out.find("random state of seed 3"), std::string::npos) << reseeded.out;
+  EXPECT_EQ(read(dir + "/out/checkpoint/checkpoint.yaml"), text);
+  EXPECT_EQ(read(dir + "/out/config.yaml"), config);
+  // Without --seed (the resume command printed) the checkpoint's seed goes on.
   const auto resumed = testing::RunBanmo(solve + " --resume");
   ASSERT_EQ(resumed.exit_code, 0) << resumed.out;
   EXPECT_NE(resumed.out.find("1 stage(s)"), std::string::npos) << resumed.out;
+  EXPECT_NE(read(dir + "/out/config.yaml").find("\nseed: 3\n"), std::string::npos);
   EXPECT_EQ(testing::RunBanmo(solve + " --resume --stop-after-batches -1").exit_code, 2);
 }
 

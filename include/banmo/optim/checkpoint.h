@@ -19,7 +19,9 @@
 // holding stage, iteration and config, no checkpoint.yaml).
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "banmo/model/model.h"
@@ -31,6 +33,11 @@ struct CheckpointInfo {
   int batch = 0;       // batches done in that stage
   std::string config;  // the resolved solver config (YAML text)
 };
+
+// The `seed` of the config a checkpoint folder was written with (none when
+// that config has no seed): a resumed solve continues its random state.
+// Reads checkpoint.yaml only; throws InputError naming the file.
+std::optional<uint32_t> ReadCheckpointSeed(const std::string& dir);
 
 // Writes the model (and optional solver state bytes) to DIR atomically.
 void SaveCheckpoint(const std::string& dir, const Model& model, const CheckpointInfo& info,
