@@ -121,6 +121,19 @@ TEST(Checkpoint, FormatTwoReadsItsIterationKeyAsTheBatch) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("damaged"), std::string::npos) << e.what();
   }
+
+  // A config whose seed is not a number: the seed read names the file.
+  std::ofstream(dir / "checkpoint.yaml")
+      << "format: banmo-checkpoint-3\nstage: 2\nbatch: 17\nconfig: |\n  seed: two\n";
+  EXPECT_NO_THROW(LoadCheckpoint(dir.string(), &info));
+  try {
+    ReadCheckpointSeed(dir.string());
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find((dir / "checkpoint.yaml").string()), std::string::npos) << message;
+    EXPECT_NE(message.find("malformed seed"), std::string::npos) << message;
+  }
   fs::remove_all(dir);
 }
 
