@@ -241,6 +241,8 @@ def main():
     ap.add_argument("--readme")
     ap.add_argument("--run-seconds", type=float)
     ap.add_argument("--command")
+    ap.add_argument("--setup", default="",
+                    help="base config, budget and threads of the runs, printed under the command")
     a = ap.parse_args()
     if a.restore:
         names = restore(a.work, os.path.join(a.results, "results", a.mode))
@@ -304,6 +306,10 @@ def main():
                f"(build, scenes, runs; wall clock, other jobs on the machine may have been "
                f"running). CSV: `benchmarks/solver/results/{a.mode}/traces.csv`. "
                "Columns and method: benchmarks/solver/README.md.")
+    if a.setup:
+        out.append("")
+        out.append(f"Runs of this part: {a.setup}. Rows restored from earlier parts were "
+                   f"measured as their own parts said (`results/{a.mode}/done.csv`).")
     out.append("")
 
     # Pareto table over the final trace point of each configuration.

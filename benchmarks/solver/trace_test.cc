@@ -103,8 +103,8 @@ TEST(TraceCsv, RowHasOneFieldPerHeaderColumn) {
 
 // The harness's tables (configs.txt, stability.txt, scenes.txt): every named
 // configuration and stability case applies to its mode's base config (as
-// run.sh passes it: full = problems/default.yaml, quick = problems/tiny.yaml
-// with the quick budget), names are unique per mode and every stability
+// run.sh passes it: full = problems/default.yaml, quick = problems/tiny.yaml,
+// each with its budget of budgets.txt), names are unique per mode and every stability
 // scene exists. A typo would otherwise surface only when run.sh reaches it,
 // an hour into a full run.
 struct TableLine {
@@ -142,10 +142,29 @@ std::string ReadBase(const std::string& mode) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-// run.sh's quick budget overrides, before the configuration's own.
+// run.sh's budget for the mode (budgets.txt): its --set overrides, which go
+// before the configuration's own. Its other options (the time cap) are
+// banmo_trace's, not the config's.
 std::vector<std::string> BudgetOverrides(const std::string& mode) {
-  if (mode == "full") return {};
-  return {"stages[0].batches=40", "stages[1].batches=5", "stages[2].batches=15"};
+  std::vector<std::string> overrides;
+  int lines = 0;
+  for (const TableLine& l : ReadTable("budgets.txt")) {
+    if (l.modes != mode) continue;
+    ++lines;
+    for (size_t i = 0; i < l.columns.size(); ++i) {
+      if (l.columns[i] == "--set") {
+        EXPECT_LT(i + 1, l.columns.size()) << "budgets.txt:" << l.line << ": --set without a value";
+        if (i + 1 < l.columns.size()) overrides.push_back(l.columns[++i]);
+      } else if (l.columns[i] == "--max-solve-seconds") {
+        EXPECT_LT(i + 1, l.columns.size()) << "budgets.txt:" << l.line;
+        ++i;
+      } else {
+        ADD_FAILURE() << "budgets.txt:" << l.line << ": unexpected option " << l.columns[i];
+      }
+    }
+  }
+  EXPECT_EQ(lines, 1) << "budgets.txt: expected one line for mode " << mode;
+  return overrides;
 }
 
 TEST(HarnessTables, EveryConfigurationParsesOnItsBase) {
