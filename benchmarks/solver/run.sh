@@ -79,7 +79,7 @@ else
       [[ ${budget[$i]} == --max-solve-seconds ]] && budget[$((i + 1))]="$BANMO_BENCH_BUDGET"
     done
   fi
-  schedule=(--every-seconds 60 --resolution 64 --frame-step 4 --final-resolution 128)
+  schedule=(--every-seconds 120 --resolution 64 --frame-step 8 --final-resolution 128)
   compare_scene=quad
 fi
 threads=$(( $(nproc) / jobs ))
