@@ -1,9 +1,10 @@
 #include "banmo/util/parallel.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
-#include <cstdlib>
 #include <exception>
 #include <memory>
 #include <mutex>
@@ -110,8 +111,12 @@ class Pool {
 
 // The pool of the current thread count, and who may use it: one call at a
 // time (a second thread calling ParallelFor meanwhile runs its chunks itself).
+// A forked child (e.g. a GoogleTest death test) inherits the pool but not its
+// threads: it leaves the parent's pool alone (never joins or locks it) and
+// makes its own.
 std::mutex g_pool_mutex;
 std::unique_ptr<Pool> g_pool;
+pid_t g_pool_pid = 0;
 }  // namespace
 
 int NumThreads() {
@@ -143,9 +148,13 @@ void ParallelFor(int n, const std::function<void(int, int)>& fn) {
     for (int c = 0; c < num_chunks; ++c) chunk(c);
     return;
   }
+  if (g_pool && g_pool_pid != getpid()) {
+    static_cast<void>(g_pool.release());  // the parent's; its threads are not ours
+  }
   if (!g_pool || g_pool->workers() != threads - 1) {
     g_pool.reset();
     g_pool = std::make_unique<Pool>(threads - 1);
+    g_pool_pid = getpid();
   }
   g_pool->Run(num_chunks, chunk);
 }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -135,6 +136,23 @@ TEST(ParallelFor, FollowsAChangeOfThreadCount) {
     EXPECT_LE(distinct, threads) << threads;
     EXPECT_EQ(static_cast<int>(ids.size()), threads == 1 ? 1 : 4 * threads) << threads;
   }
+}
+
+// A death test forks: the child has the parent's pool but none of its
+// threads, and must still finish its ParallelFor.
+TEST(ParallelForDeathTest, WorksInAForkedChild) {
+  ThreadCountGuard guard;
+  SetNumThreads(2);
+  std::atomic<int> sum{0};
+  ParallelFor(100, [&](int begin, int end) { sum += end - begin; });  // the parent's pool
+  ASSERT_EQ(sum.load(), 100);
+  EXPECT_DEATH(
+      {
+        std::atomic<int> child{0};
+        ParallelFor(100, [&](int begin, int end) { child += end - begin; });
+        if (child.load() == 100) std::abort();
+      },
+      "");
 }
 
 TEST(SetNumThreads, IsReadBack) {
