@@ -150,15 +150,12 @@ int RunEval(int argc, char** argv) {
   const Timer timer;
   const std::vector<TriangleMesh> pred = ReadMeshes(pred_files);
   const std::vector<TriangleMesh> gt = ReadMeshes(gt_files);
-  EvalReport report;
-  report.protocol = options.protocol;
-  report.gt_mode = options.gt_mode;
-  for (std::size_t i = 0; i < gt.size(); ++i) {
-    report.frames.push_back(EvaluatePair(pred[i], gt[i], options, pred_files[i], gt_files[i]));
-    std::fprintf(stderr, "  frame %zu/%zu: CD %.3f cm (%.1f s)\n", i + 1, gt.size(),
-                 report.frames.back().ChamferCm(), timer.Seconds());
-  }
-  Summarize(&report);
+  const int total = static_cast<int>(gt.size());
+  const EvalReport report = EvaluateSequence(
+      pred, gt, options, pred_files, gt_files, [&](int frame, int done, const FrameEval& result) {
+        std::fprintf(stderr, "  %d/%d done: frame %d, CD %.3f cm (%.1f s)\n", done, total, frame,
+                     result.ChamferCm(), timer.Seconds());
+      });
   std::fputs(FormatReportTable(report).c_str(), stdout);
   if (!out_dir.empty()) {
     WriteEvalOutputs(out_dir, report, options);

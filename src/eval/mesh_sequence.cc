@@ -6,6 +6,7 @@
 
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/util/error.h"
+#include "banmo/util/parallel.h"
 
 namespace banmo {
 namespace {
@@ -46,9 +47,12 @@ std::vector<std::string> ListMeshFiles(const std::string& path) {
 }
 
 std::vector<TriangleMesh> ReadMeshes(const std::vector<std::string>& files) {
-  std::vector<TriangleMesh> meshes;
-  meshes.reserve(files.size());
-  for (const std::string& file : files) meshes.push_back(ReadMesh(file));
+  std::vector<TriangleMesh> meshes(files.size());
+  ParallelFor(static_cast<int>(files.size()), [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      meshes[static_cast<std::size_t>(i)] = ReadMesh(files[static_cast<std::size_t>(i)]);
+    }
+  });
   return meshes;
 }
 

@@ -419,8 +419,15 @@ RootRegistration RegisterRootPoseInit(const RootRegistrationOptions& options, Da
   // The factorisation's error in pixels (the first frame's focal length).
   result.affine_rms_px = best.rms * focal[0][0];
 
-  Adjusted adjusted = Adjust(best, false, obs, focal);
-  Adjusted mirror = Adjust(best, true, obs, focal);
+  // The adjustment and its mirror image side by side (each Ceres solve on
+  // one thread; the same results as one after the other).
+  Adjusted adjusted;
+  Adjusted mirror;
+  ParallelFor(2, [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      (i == 0 ? adjusted : mirror) = Adjust(best, i == 1, obs, focal);
+    }
+  });
   if (mirror.cost < adjusted.cost) std::swap(adjusted, mirror);
   result.cost = adjusted.cost;
   result.mirror_cost = mirror.cost;

@@ -6,6 +6,7 @@
 
 #include "../common/input_error.h"
 #include "banmo/util/error.h"
+#include "banmo/util/parallel.h"
 #include "test_shapes.h"
 
 namespace banmo {
@@ -181,6 +182,45 @@ TEST(EvaluateSequence, MeansWorstFramesAndCountMismatch) {
               EvaluateSequence(two, gts, Options(EvalProtocol::kBanmo));
             }).find("frame counts differ"),
             std::string::npos);
+}
+
+// The frames run in parallel: every frame's numbers equal its own
+// EvaluatePair's bit for bit (at two threads: the inner passes keep their
+// split), the callback sees each frame once, and a bad frame's error names it.
+TEST(EvaluateSequence, ParallelFramesEqualOneAtATime) {
+  const int threads_before = NumThreads();
+  SetNumThreads(2);
+  const TriangleMesh gt = UvSphere(1.0, kCenter);
+  std::vector<TriangleMesh> gts;
+  std::vector<TriangleMesh> preds;
+  for (int i = 0; i < 9; ++i) {
+    gts.push_back(gt);
+    preds.push_back(UvSphere(1.0 + 0.01 * i, kCenter));
+  }
+  std::vector<int> seen(gts.size(), 0);
+  std::vector<int> done_counts;
+  const EvalReport report = EvaluateSequence(preds, gts, DenseOptions(), {}, {},
+                                             [&](int frame, int done, const FrameEval& result) {
+                                               ++seen[static_cast<std::size_t>(frame)];
+                                               done_counts.push_back(done);
+                                               EXPECT_GE(result.ChamferCm(), 0.0);
+                                             });
+  ASSERT_EQ(report.frames.size(), gts.size());
+  for (std::size_t i = 0; i < gts.size(); ++i) {
+    EXPECT_EQ(seen[i], 1) << "frame " << i;
+    EXPECT_EQ(done_counts[i], static_cast<int>(i) + 1);
+    const FrameEval alone = EvaluatePair(preds[i], gts[i], DenseOptions());
+    EXPECT_EQ(report.frames[i].metrics.chamfer_sum, alone.metrics.chamfer_sum) << "frame " << i;
+    EXPECT_EQ(report.frames[i].metrics.fscore, alone.metrics.fscore) << "frame " << i;
+    EXPECT_EQ(report.frames[i].icp.iterations, alone.icp.iterations) << "frame " << i;
+  }
+  EXPECT_GT(report.frames[8].ChamferCm(), report.frames[0].ChamferCm());
+
+  std::vector<TriangleMesh> bad = preds;
+  bad[5].faces(0, 0) = 1 << 20;  // out of range
+  EXPECT_NE(ErrorOf([&] { EvaluateSequence(bad, gts, DenseOptions()); }).find("frame 5"),
+            std::string::npos);
+  SetNumThreads(threads_before);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -138,13 +139,20 @@ FrameEval EvaluatePair(const TriangleMesh& pred, const TriangleMesh& gt, const E
                        const std::string& pred_name = "prediction",
                        const std::string& gt_name = "ground truth");
 
-// Evaluates frame i of `pred` against frame i of `gt` and summarises. Names
+// Called as each frame finishes (in completion order, one call at a time):
+// the frame's index, how many frames are done, its result.
+using FrameCallback = std::function<void(int frame, int done, const FrameEval& result)>;
+
+// Evaluates frame i of `pred` against frame i of `gt` and summarises, the
+// frames in parallel (ParallelFor; the same numbers as one at a time). Names
 // (optional, else "frame i") label frames in errors and outputs. Throws
-// InputError if the frame counts differ or are zero.
+// InputError if the frame counts differ or are zero, or a frame's error
+// (EvaluatePair) once the other frames have finished.
 EvalReport EvaluateSequence(const std::vector<TriangleMesh>& pred,
                             const std::vector<TriangleMesh>& gt, const EvalOptions& options,
                             const std::vector<std::string>& pred_names = {},
-                            const std::vector<std::string>& gt_names = {});
+                            const std::vector<std::string>& gt_names = {},
+                            const FrameCallback& on_frame = nullptr);
 
 // Recomputes the means and worst frames of `report` from report->frames.
 void Summarize(EvalReport* report);

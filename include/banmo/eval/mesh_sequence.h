@@ -14,7 +14,8 @@ namespace banmo {
 // a folder without meshes.
 std::vector<std::string> ListMeshFiles(const std::string& path);
 
-// ReadMesh (geometry/mesh_io.h) on every file, in order.
+// ReadMesh (geometry/mesh_io.h) on every file, in parallel; the meshes in the
+// files' order. A file's error is thrown once the other reads have finished.
 std::vector<TriangleMesh> ReadMeshes(const std::vector<std::string>& files);
 
 }  // namespace banmo
