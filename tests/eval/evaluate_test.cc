@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "../common/input_error.h"
+#include "../common/thread_count_guard.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
 #include "test_shapes.h"
@@ -188,7 +189,7 @@ TEST(EvaluateSequence, MeansWorstFramesAndCountMismatch) {
 // EvaluatePair's bit for bit (at two threads: the inner passes keep their
 // split), the callback sees each frame once, and a bad frame's error names it.
 TEST(EvaluateSequence, ParallelFramesEqualOneAtATime) {
-  const int threads_before = NumThreads();
+  const testing::ThreadCountGuard guard;
   SetNumThreads(2);
   const TriangleMesh gt = UvSphere(1.0, kCenter);
   std::vector<TriangleMesh> gts;
@@ -220,7 +221,6 @@ TEST(EvaluateSequence, ParallelFramesEqualOneAtATime) {
   bad[5].faces(0, 0) = 1 << 20;  // out of range
   EXPECT_NE(ErrorOf([&] { EvaluateSequence(bad, gts, DenseOptions()); }).find("frame 5"),
             std::string::npos);
-  SetNumThreads(threads_before);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "../common/thread_count_guard.h"
 #include "banmo/util/parallel.h"
 #include "field_test_util.h"
 
@@ -157,6 +158,7 @@ TEST(EmbeddingMatch, ZeroNormFeatureAndEmbeddingAreFinite) {
 
 // Match is called concurrently from the ray cost functions' batched pass.
 TEST(EmbeddingMatch, ConcurrentMatchesEqualSerial) {
+  const testing::ThreadCountGuard guard;  // the test sets the thread count
   const Scene scene(4);
   Eigen::Matrix3Xd grid;
   Eigen::MatrixXd psi;

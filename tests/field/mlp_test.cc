@@ -7,6 +7,7 @@
 #include <memory>
 #include <random>
 
+#include "../common/thread_count_guard.h"
 #include "banmo/util/dual.h"
 #include "banmo/util/parallel.h"
 #include "field_test_util.h"
@@ -105,6 +106,7 @@ TEST_P(MlpTest, ForwardTangentsMatchJets) {
 }
 
 TEST_P(MlpTest, BackwardPerGroupMatchesFullJetReference) {
+  const testing::ThreadCountGuard guard;  // the test sets the thread count
   const Mlp mlp(SmallOptions(GetParam().first, GetParam().second));
   const auto p = Params(mlp, 5);
   const Eigen::MatrixXd x = RandomMatrix(5, kN, 10);

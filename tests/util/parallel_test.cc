@@ -12,18 +12,12 @@
 #include <utility>
 #include <vector>
 
+#include "../common/thread_count_guard.h"
+
 namespace banmo {
 namespace {
 
-// Restores the thread count of the process after a test changes it.
-class ThreadCountGuard {
- public:
-  ThreadCountGuard() : saved_(NumThreads()) {}
-  ~ThreadCountGuard() { SetNumThreads(saved_); }
-
- private:
-  int saved_;
-};
+using testing::ThreadCountGuard;
 
 TEST(ParallelFor, ChunksAreDisjointContiguousAndCoverTheRange) {
   ThreadCountGuard guard;
