@@ -386,11 +386,19 @@ void RayPipeline::CompositeInputs(RayWork& w) {
     }
   }
   u[L.log_beta] = *p.block[kBlockLogBeta];
-  // Flow: each X*_i pushed with the forward warp of t' and projected (Eq. 6).
+  // Flow: each X*_i pushed with the forward warp of t' and projected (Eq. 6),
+  // the samples the flow sums only (weight >= kMinWarpTau; the others'
+  // displacements stay 0, unread).
   flow_warp.resize(L.has_displacement && jacobians ? n : 0);
   flow_proj.resize(flow_warp.size());
+  w.flow_active.assign(L.has_displacement ? n : 0, 0);
   if (L.has_displacement) {
+    std::vector<double> tau(n);
+    CompositeWeights(n, &u[L.sdf], u[L.log_beta], ray.samples.deltas.data(),
+                     model.options().density, tau.data());
     for (int i = 0; i < n; ++i) {
+      w.flow_active[i] = WarpsSample(tau[i]);
+      if (!w.flow_active[i]) continue;
       Eigen::Vector3d x_t2;
       Eigen::Vector2d uv2;
       if (jacobians) {
@@ -513,12 +521,13 @@ bool RayPipeline::RenderingWeights(RayWork& w) {
   if (!jacobians) {
     if (cycle3d) {
       for (int i = 0; i < n; ++i) {
+        const Cycle3dLoss loss(tau[i], weights[LossTerm::kCycle3d]);
+        if (!loss.active()) continue;  // rows stay 0
         Eigen::Vector3d q;
         ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_star.col(i).data(), q.data(),
                     fw_logits(s.fw_offset + i));
-        Cycle3dResidual(Cycle3dLoss(tau[i], weights[LossTerm::kCycle3d]), p.block[kBlockRoot],
-                        p.root_init, intr, ray.uv.data(), ray.samples.depths[i], q.data(),
-                        ev.residuals.data() + R + 3 * i);
+        Cycle3dResidual(loss, p.block[kBlockRoot], p.root_init, intr, ray.uv.data(),
+                        ray.samples.depths[i], q.data(), ev.residuals.data() + R + 3 * i);
       }
     }
     return false;
@@ -605,6 +614,7 @@ void RayPipeline::ReverseComposite(RayWork& w) {
   // Flow: displacement_i = Pi_{t'}(G^{t'} W^{t',->}(X*_i)) - x.
   if (L.has_displacement) {
     for (int i = 0; i < n; ++i) {
+      if (!w.flow_active[i]) continue;  // not read by the flow
       const auto a_disp = D.middleCols<2>(L.displacement + 2 * i);
       const Eigen::Matrix<double, Eigen::Dynamic, 3> a_p = a_disp * flow_proj[i].leftCols<3>();
       AddProduct(&jac[kBlockPartnerRoot], 0, a_disp, flow_proj[i].middleCols<kPoseSize>(3));
@@ -685,9 +695,14 @@ void RayPipeline::Cycle3dGradient(RayWork& w) {
   // ---- 3D cycle, gradient mode: all residuals first (rho' needs the
   // whole term's |r|^2), then one cotangent row c_i^T E_i per sample. ----
   if (cycle3d && gradient) {
+    // Samples of weight below Cycle3dLoss::kMinTau: residual 0, skipped.
+    std::vector<char> active(n);
     std::vector<WarpJacobian> qjs(n);
     std::vector<Cycle3dJacobian> Es(n);
-    for (int i = 0; i < n; ++i) Cycle3dSample(w, i, &qjs[i], &Es[i]);
+    for (int i = 0; i < n; ++i) {
+      active[i] = Cycle3dLoss((*w.tau)[i], weights[LossTerm::kCycle3d]).active();
+      if (active[i]) Cycle3dSample(w, i, &qjs[i], &Es[i]);
+    }
     const Eigen::Map<const Eigen::VectorXd> r_t(ev.residuals.data() + R, 3 * n);
     const double sq = r_t.squaredNorm();
     double rho[3] = {sq, 1.0, 0.0};
@@ -695,6 +710,7 @@ void RayPipeline::Cycle3dGradient(RayWork& w) {
     if ((*robust)[t] != nullptr) (*robust)[t]->Evaluate(sq, rho);
     (*ray_cost)[r] += 0.5 * rho[0];
     for (int i = 0; i < n; ++i) {
+      if (!active[i]) continue;
       const Eigen::Matrix<double, 1, kPointPoseIntrinsics> e =
           rho[1] * r_t.segment<3>(3 * i).transpose() * Es[i];
       const Eigen::Matrix<double, 1, 3> a_q = e.leftCols<3>();
@@ -731,6 +747,8 @@ void RayPipeline::Cycle3dRows(RayWork& w) {
   // ---- 3D cycle rows: 3 per sample, small blocks only. ----
   if (cycle3d && !gradient) {
     for (int i = 0; i < n; ++i) {
+      // Weight below Cycle3dLoss::kMinTau: rows and Jacobian stay 0.
+      if (!Cycle3dLoss((*w.tau)[i], weights[LossTerm::kCycle3d]).active()) continue;
       const int row0 = R + 3 * i;
       WarpJacobian qj;
       Cycle3dJacobian E;

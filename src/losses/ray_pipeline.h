@@ -167,7 +167,8 @@ class RayPipeline {
     const int R;  // composite rows
     int Rc = 0;   // rows of the reverse chain: R, or 1 in gradient mode
     const bool cycle3d;
-    std::vector<double> u;  // the composite functor's locals
+    std::vector<double> u;          // the composite functor's locals
+    std::vector<char> flow_active;  // samples the flow sums (weight >= kMinWarpTau)
     std::vector<WarpJacobian> flow_warp;
     std::vector<ProjectionJacobian> flow_proj;
     WarpJacobian cycle_warp;

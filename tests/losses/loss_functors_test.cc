@@ -115,5 +115,21 @@ TEST(Cycle3dLoss, WeightedByTau) {
   EXPECT_NEAR(r[2], 0.5, kTol);
 }
 
+// Weights below kMinWarpTau count as 0 (the pipeline skips those samples'
+// forward warps); at kMinWarpTau the term is the plain sqrt(w tau) one.
+TEST(Cycle3dLoss, WeightsBelowMinWarpTauCountAsZero) {
+  const double a[3] = {1, 2, 3}, b[3] = {1, 2, 2.5};
+  double r[3];
+  const Cycle3dLoss below(0.99 * kMinWarpTau, 4.0);
+  EXPECT_FALSE(below.active());
+  below(a, b, r);
+  for (double v : r) EXPECT_EQ(v, 0.0);
+  const Cycle3dLoss at(kMinWarpTau, 4.0);
+  EXPECT_TRUE(at.active());
+  at(a, b, r);
+  EXPECT_NEAR(r[2], std::sqrt(4.0 * kMinWarpTau) * 0.5, kTol);
+  EXPECT_FALSE(Cycle3dLoss(0.5, 0.0).active());  // no weight
+}
+
 }  // namespace
 }  // namespace banmo

@@ -13,6 +13,7 @@
 #include "banmo/deform/bones.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
+#include "banmo/losses/sample_weight.h"
 #include "banmo/util/error.h"
 #include "common/test_scene.h"
 #include "jacobian_test_util.h"
@@ -290,6 +291,62 @@ TEST(RayBatch, NeusDensityMatchesFullJetReference) {
     }
   }
   for (LossTerm term : RayTerms()) ExpectBatchedCacheEqualsSingleRay(batch, term);
+}
+
+// Samples of weight below kMinWarpTau (losses/sample_weight.h) are left out
+// of the flow and the 3D cycle, and the pipeline skips their forward warps.
+// The test rays' samples lie 0.67-0.9 outside the random surface: a sharper
+// density (the first beta below that splits them) leaves some of each ray's
+// samples under the bound. Flow and 3D cycle still match the full-Jet
+// reference, which warps every sample and leaves them out in the functors;
+// the 3D-cycle rows of the skipped samples are 0. With and without delta
+// skinning (its forward logits are computed for every sample and read only
+// for the warped ones).
+TEST(RayBatch, SamplesOfNegligibleWeightMatchFullJetReference) {
+  for (bool delta : {false, true}) {
+    TestSceneOptions options = delta ? DeltaSceneOptions() : TestSceneOptions();
+    options.hold_cycle_tau = false;  // the weights follow log beta below
+    TestScene scene = MakeTestScene(options);
+    RayBatch& batch = *scene.batch;
+    int skipped = 0, warped = 0;
+    for (double beta : {0.1, 0.09, 0.08, 0.07, 0.06}) {
+      *scene.model->log_beta() = std::log(beta);
+      batch.Invalidate();
+      batch.EvaluateAll(/*jacobians=*/false);
+      skipped = warped = 0;
+      for (int r = 0; r < batch.num_rays(); ++r) {
+        for (double tau : batch.evaluation(r).tau) ++(WarpsSample(tau) ? warped : skipped);
+      }
+      if (skipped >= 4 && warped >= 4) break;
+    }
+    ASSERT_GE(skipped, 4);
+    ASSERT_GE(warped, 4);
+    for (int r = 0; r < batch.num_rays(); ++r) {
+      const RayEvaluation& ev = batch.evaluation(r);
+      const int row = ev.term_row[static_cast<int>(LossTerm::kCycle3d)];
+      ASSERT_GE(row, 0);
+      for (size_t i = 0; i < ev.tau.size(); ++i) {
+        if (WarpsSample(ev.tau[i])) continue;
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(ev.residuals[row + 3 * i + c], 0.0);
+      }
+    }
+    for (LossTerm term : {LossTerm::kFlow, LossTerm::kCycle3d}) {
+      for (int r = 0; r < batch.num_rays(); ++r) {
+        const std::string what = std::string(LossTermName(term)) + " ray " + std::to_string(r) +
+                                 (delta ? " (delta)" : "");
+        const std::vector<double*> params = batch.TermParameterBlocks(r, term);
+        const auto a = EvaluateCost(*batch.MakeCostFunction(r, term), params);
+        const auto b = EvaluateCost(*MakeReferenceCostFunction(batch, r, term), params);
+        ASSERT_TRUE(a.ok && b.ok) << what;
+        EXPECT_LT((a.residuals - b.residuals).cwiseAbs().maxCoeff(),
+                  1e-12 * std::max(1.0, b.residuals.cwiseAbs().maxCoeff()))
+            << what;
+        EXPECT_GT(testing::MaxAbs(b), 0.0) << what;
+        EXPECT_LT(RelativeJacobianError(a, b), kReferenceTolerance) << what;
+      }
+      ExpectBatchedCacheEqualsSingleRay(batch, term);
+    }
+  }
 }
 
 // losses.feature_render_embedding_only: the rendered-embedding term's

@@ -3,9 +3,13 @@
 // backward to canonical, then forward back (docs/design.md: the reading of the
 // paper's slip), with tau_i a constant weight (no gradient through it).
 // X_i^t and the cycled point are in camera coordinates of frame t.
+// A sample whose weight is below kMinWarpTau counts as weight 0
+// (losses/sample_weight.h).
 #pragma once
 
 #include <cmath>
+
+#include "banmo/losses/sample_weight.h"
 
 namespace banmo {
 
@@ -13,7 +17,11 @@ class Cycle3dLoss {
  public:
   static constexpr int kNumResiduals = 3;
   // tau: the sample's rendering weight, held constant.
-  Cycle3dLoss(double tau, double weight) : sqrt_weight_tau_(std::sqrt(weight * tau)) {}
+  Cycle3dLoss(double tau, double weight)
+      : sqrt_weight_tau_(WarpsSample(tau) ? std::sqrt(weight * tau) : 0.0) {}
+
+  // False when the residual is 0 whatever the points (weight or tau 0).
+  bool active() const { return sqrt_weight_tau_ > 0.0; }
 
   template <typename T>
   bool operator()(const T* cycled_point, const T* sample_point, T* residual) const {

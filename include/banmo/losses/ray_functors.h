@@ -22,6 +22,7 @@
 #include "banmo/losses/flow_loss.h"
 #include "banmo/losses/ray.h"
 #include "banmo/losses/rgb_loss.h"
+#include "banmo/losses/sample_weight.h"
 #include "banmo/losses/silhouette_loss.h"
 #include "banmo/volume/volume_rendering.h"
 
@@ -116,7 +117,8 @@ struct CompositeLocals {
 // (Eqs. 4-7: colour, opacity, expected positions and flow, embedding) and
 // evaluates the rgb, silhouette, flow, feature-match, 2D-cycle and
 // rendered-embedding residuals (Eqs. 16-18) of the ray's active terms, in
-// LossTerm order. Input u laid
+// LossTerm order. The flow sums only samples of weight tau_i >= kMinWarpTau
+// (losses/sample_weight.h): the other samples' displacements are not read. Input u laid
 // out as CompositeLocals. (Names: docs/design.md, "Names".)
 class RayCompositeFunctor {
  public:
@@ -170,6 +172,7 @@ class RayCompositeFunctor {
     if (active(LossTerm::kFlow)) {
       T displacement[2] = {T(0), T(0)};
       for (int i = 0; i < n; ++i) {
+        if (!WarpsSample(tau[i])) continue;  // weight below kMinWarpTau: left out
         for (int k = 0; k < 2; ++k) displacement[k] += tau[i] * u[locals_.displacement + 2 * i + k];
       }
       FlowLoss(ray_.flow, weights_[LossTerm::kFlow])(displacement, residual + row);
