@@ -9,6 +9,7 @@
 #include <ceres/solver.h>
 #include <glog/logging.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -246,6 +247,28 @@ struct BonePairResidual {
   double scale;
 };
 
+// All of a bone pair's shared points at once, through four homogeneous
+// points (p_k, w_k): r_k = scale (R_a p_k + w_k t_a - R_b p_k - w_k t_b)
+// (MakeBonePairMomentCostFunction).
+struct BonePairMomentResidual {
+  template <typename T>
+  bool operator()(const T* ja, const T* jb, T* residuals) const {
+    for (int k = 0; k < 4; ++k) {
+      const T p[3] = {T(points(0, k)), T(points(1, k)), T(points(2, k))};
+      const T w(points(3, k));
+      T ya[3], yb[3];
+      ceres::QuaternionRotatePoint(ja + kPoseQw, p, ya);
+      ceres::QuaternionRotatePoint(jb + kPoseQw, p, yb);
+      for (int i = 0; i < 3; ++i) {
+        residuals[3 * k + i] = T(scale) * (ya[i] - yb[i] + w * (ja[kPoseT + i] - jb[kPoseT + i]));
+      }
+    }
+    return true;
+  }
+  Eigen::Matrix4d points;  // columns (p_k, w_k)
+  double scale;
+};
+
 // A bone transform's travel of its rest centre c: R c + t - c.
 template <typename T>
 void CentreTravel(const T* pose, const Eigen::Vector3d& c, T* tau) {
@@ -402,6 +425,25 @@ std::unique_ptr<ceres::CostFunction> MakeBonePairCostFunction(const Eigen::Vecto
                                                               double scale) {
   return std::make_unique<ceres::AutoDiffCostFunction<BonePairResidual, 3, kPoseSize, kPoseSize>>(
       new BonePairResidual{m, scale});
+}
+
+std::unique_ptr<ceres::CostFunction> MakeBonePairMomentCostFunction(
+    const std::vector<Eigen::Vector3d>& points, double scale) {
+  CHECK(!points.empty());
+  // M = sum_m [m; 1][m; 1]^T = V diag(lambda) V^T; the columns of
+  // V diag(sqrt(lambda)) (lambda clamped at 0: M is positive semidefinite,
+  // rounding aside) give sum_k x_k x_k^T = M.
+  Eigen::Matrix4d moments = Eigen::Matrix4d::Zero();
+  for (const Eigen::Vector3d& m : points) {
+    const Eigen::Vector4d x(m.x(), m.y(), m.z(), 1.0);
+    moments.noalias() += x * x.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(moments);
+  CHECK_EQ(eigen.info(), Eigen::Success);
+  const Eigen::Vector4d root = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  auto* residual = new BonePairMomentResidual{eigen.eigenvectors() * root.asDiagonal(), scale};
+  return std::make_unique<
+      ceres::AutoDiffCostFunction<BonePairMomentResidual, 12, kPoseSize, kPoseSize>>(residual);
 }
 
 std::unique_ptr<ceres::CostFunction> MakeBonePriorCostFunction(const Pose& reference,
@@ -592,12 +634,12 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
   int shared = 0;
   for (const RegistrationProxy::Pair& pair : proxy.pairs) shared += pair.points.size();
   if (config.joint_weight > 0 && shared > 0) {
+    // One block per pair: the same sum of squares as a block per shared
+    // point (MakeBonePairMomentCostFunction), 12 rows instead of 3 a point.
     const double s = std::sqrt(config.joint_weight / shared) * scale;
     for (const RegistrationProxy::Pair& pair : proxy.pairs) {
-      for (const Eigen::Vector3d& m : pair.points) {
-        problem.AddResidualBlock(MakeBonePairCostFunction(m, s).release(), nullptr, block(pair.a),
-                                 block(pair.b));
-      }
+      problem.AddResidualBlock(MakeBonePairMomentCostFunction(pair.points, s).release(), nullptr,
+                               block(pair.a), block(pair.b));
     }
   }
   for (int b = 0; b < B; ++b) {
@@ -651,10 +693,13 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
   const int rounds = coverage ? config.coverage_rounds : 1;
   ceres::Solver::Options options;
   options.max_num_iterations = std::max(1, (config.iterations + rounds - 1) / rounds);
-  // Sparse normal equations: each residual touches at most a few of the
-  // B bones (mask term on the default scene: 32 s against 44 with DENSE_QR,
-  // the same fit to the printed digits).
-  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  // Dense normal equations: 6 B unknowns (96 on the default scene), where
+  // the sparse ones rebuilt their symbolic structure at each of the
+  // coverage rounds' solves (the default scene's stage-3 registration, one
+  // thread: 40.6 s against 43.9 with SPARSE_NORMAL_CHOLESKY, the same fit
+  // to the printed digits; DENSE_QR was slower than both, 44 s against 32
+  // with the mask term alone).
+  options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   std::vector<ceres::ResidualBlockId> coverage_blocks;

@@ -269,6 +269,58 @@ TEST(BoneRegistration, BonePairIsTheScaledDifferenceOfTheTwoImages) {
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(r[i], d[i], 1e-12);
 }
 
+// The pair's moment form against a block per point: the same cost,
+// gradient and Gauss-Newton matrix J^T J (to 1e-10 relative: sums of 40
+// terms against 4), for two, three (coplanar: a singular moment matrix)
+// and forty points, in the ambient 7 + 7 parameters.
+TEST(BoneRegistration, BonePairMomentsEqualTheSumOverThePoints) {
+  const Pose a = TurnAbout(Eigen::Vector3d(0.3, -0.1, 0.2), Eigen::Vector3d(0.1, 0, 0),
+                           Eigen::Vector3d(0.02, 0.1, 0));
+  const Pose b = TurnAbout(Eigen::Vector3d(-0.2, 0.4, 0.1), Eigen::Vector3d(0.5, 0.2, 0),
+                           Eigen::Vector3d(0, 0.03, -0.05));
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-0.5, 0.5);
+  for (int count : {2, 3, 40}) {
+    std::vector<Eigen::Vector3d> points;
+    for (int i = 0; i < count; ++i) {
+      points.emplace_back(u(rng), u(rng), count == 3 ? 0.25 : u(rng));
+    }
+    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    double cost_points = 0.0;
+    Eigen::VectorXd g_points = Eigen::VectorXd::Zero(14);
+    Eigen::MatrixXd h_points = Eigen::MatrixXd::Zero(14, 14);
+    auto add = [&](const ceres::CostFunction& f, double* cost, Eigen::VectorXd* g,
+                   Eigen::MatrixXd* h) {
+      const int rows = f.num_residuals();
+      Eigen::VectorXd r(rows);
+      RowMajor ja(rows, kPoseSize), jb(rows, kPoseSize);
+      const double* params[2] = {a.data(), b.data()};
+      double* jacobians[2] = {ja.data(), jb.data()};
+      ASSERT_TRUE(f.Evaluate(params, r.data(), jacobians));
+      Eigen::MatrixXd j(rows, 14);
+      j << ja, jb;
+      *cost += r.squaredNorm();
+      *g += j.transpose() * r;
+      *h += j.transpose() * j;
+    };
+    for (const Eigen::Vector3d& m : points) {
+      add(*MakeBonePairCostFunction(m, 7.0), &cost_points, &g_points, &h_points);
+    }
+    double cost = 0.0;
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(14);
+    Eigen::MatrixXd h = Eigen::MatrixXd::Zero(14, 14);
+    const auto moments = MakeBonePairMomentCostFunction(points, 7.0);
+    EXPECT_EQ(moments->num_residuals(), 12);
+    add(*moments, &cost, &g, &h);
+    ASSERT_GT(cost_points, 0.0);
+    EXPECT_NEAR(cost, cost_points, 1e-10 * cost_points) << count << " points";
+    EXPECT_LE((g - g_points).cwiseAbs().maxCoeff(), 1e-10 * g_points.cwiseAbs().maxCoeff())
+        << count << " points";
+    EXPECT_LE((h - h_points).cwiseAbs().maxCoeff(), 1e-10 * h_points.cwiseAbs().maxCoeff())
+        << count << " points";
+  }
+}
+
 TEST(BoneRegistration, VisiblePointsHideWhatIsBehindInTheSamePixel) {
   const Eigen::Vector4d k(100, 100, 32, 32);
   Eigen::Matrix3Xd p(3, 5);

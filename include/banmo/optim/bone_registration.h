@@ -132,6 +132,17 @@ std::unique_ptr<ceres::CostFunction> MakeSkinnedMaskCostFunctionAutoDiff(
 std::unique_ptr<ceres::CostFunction> MakeBonePairCostFunction(const Eigen::Vector3d& m,
                                                               double scale);
 
+// A bone pair's shared points m at once: the residual is linear in the
+// homogeneous point [m; 1], so sum_m |scale (J_a m - J_b m)|^2 equals the
+// same sum over four homogeneous points x_k = (p_k, w_k) with
+// sum_k x_k x_k^T = sum_m [m; 1][m; 1]^T, r_k = scale (R_a p_k + w_k t_a -
+// R_b p_k - w_k t_b): 12 residuals for any number of points (the
+// registration's pairs hold up to 40: 120 rows), the same value, gradient
+// and Gauss-Newton matrix to rounding. Parameter blocks J_a, J_b. Autodiff;
+// MakeBonePairCostFunction is its twin.
+std::unique_ptr<ceres::CostFunction> MakeBonePairMomentCostFunction(
+    const std::vector<Eigen::Vector3d>& points, double scale);
+
 // One bone transform J against a reference J0, both read as a turn R about
 // the rest centre c and the centre's travel tau = R c + t - c:
 //   r = scale [angle-axis(R R0^T); tau - tau0]   (6 residuals),
