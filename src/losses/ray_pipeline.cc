@@ -695,7 +695,7 @@ void RayPipeline::Cycle3dGradient(RayWork& w) {
   // ---- 3D cycle, gradient mode: all residuals first (rho' needs the
   // whole term's |r|^2), then one cotangent row c_i^T E_i per sample. ----
   if (cycle3d && gradient) {
-    // Samples of weight below Cycle3dLoss::kMinTau: residual 0, skipped.
+    // Samples of weight below kMinWarpTau: residual 0, skipped.
     std::vector<char> active(n);
     std::vector<WarpJacobian> qjs(n);
     std::vector<Cycle3dJacobian> Es(n);
@@ -747,7 +747,7 @@ void RayPipeline::Cycle3dRows(RayWork& w) {
   // ---- 3D cycle rows: 3 per sample, small blocks only. ----
   if (cycle3d && !gradient) {
     for (int i = 0; i < n; ++i) {
-      // Weight below Cycle3dLoss::kMinTau: rows and Jacobian stay 0.
+      // Weight below kMinWarpTau: rows and Jacobian stay 0.
       if (!Cycle3dLoss((*w.tau)[i], weights[LossTerm::kCycle3d]).active()) continue;
       const int row0 = R + 3 * i;
       WarpJacobian qj;

@@ -118,8 +118,8 @@ struct CompositeLocals {
 // evaluates the rgb, silhouette, flow, feature-match, 2D-cycle and
 // rendered-embedding residuals (Eqs. 16-18) of the ray's active terms, in
 // LossTerm order. The flow sums only samples of weight tau_i >= kMinWarpTau
-// (losses/sample_weight.h): the other samples' displacements are not read. Input u laid
-// out as CompositeLocals. (Names: docs/design.md, "Names".)
+// (losses/sample_weight.h): the other samples' displacements are not read.
+// Input u laid out as CompositeLocals. (Names: docs/design.md, "Names".)
 class RayCompositeFunctor {
  public:
   RayCompositeFunctor(const Ray& ray, const RayLossWeights& weights, DensityModel density)
