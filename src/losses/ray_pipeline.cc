@@ -386,6 +386,12 @@ void RayPipeline::CompositeInputs(RayWork& w) {
     }
   }
   u[L.log_beta] = *p.block[kBlockLogBeta];
+  // Rendering weights, once: the flow below and RenderingWeights read them.
+  RayEvaluation& ev = w.ev;
+  ev.sdf.assign(u.begin() + L.sdf, u.begin() + L.sdf + n);
+  ev.tau.resize(n);
+  CompositeWeights(n, ev.sdf.data(), u[L.log_beta], ray.samples.deltas.data(),
+                   model.options().density, ev.tau.data());
   // Flow: each X*_i pushed with the forward warp of t' and projected (Eq. 6),
   // the samples the flow sums only (weight >= kMinWarpTau; the others'
   // displacements stay 0, unread).
@@ -393,11 +399,8 @@ void RayPipeline::CompositeInputs(RayWork& w) {
   flow_proj.resize(flow_warp.size());
   w.flow_active.assign(L.has_displacement ? n : 0, 0);
   if (L.has_displacement) {
-    std::vector<double> tau(n);
-    CompositeWeights(n, &u[L.sdf], u[L.log_beta], ray.samples.deltas.data(),
-                     model.options().density, tau.data());
     for (int i = 0; i < n; ++i) {
-      w.flow_active[i] = WarpsSample(tau[i]);
+      w.flow_active[i] = WarpsSample(ev.tau[i]);
       if (!w.flow_active[i]) continue;
       Eigen::Vector3d x_t2;
       Eigen::Vector2d uv2;
@@ -505,15 +508,8 @@ bool RayPipeline::RenderingWeights(RayWork& w) {
   const double* intr = w.intr;
   const int R = w.R;
   const bool cycle3d = w.cycle3d;
-  // Rendering weights; the 3D cycle (Eq. 19) uses the ray's fixed
-  // cycle_tau when set (the minibatch's constants), else these values.
-  {
-    ev.sdf.resize(n);
-    for (int i = 0; i < n; ++i) ev.sdf[i] = fb.sdf(s.field_offset + i);
-    ev.tau.resize(n);
-    CompositeWeights(n, ev.sdf.data(), *p.block[kBlockLogBeta], ray.samples.deltas.data(),
-                     model.options().density, ev.tau.data());
-  }
+  // The 3D cycle (Eq. 19) uses the ray's fixed cycle_tau when set (the
+  // minibatch's constants), else the rendering weights of CompositeInputs.
   w.tau = ray.cycle_tau.empty() ? &ev.tau : &ray.cycle_tau;
   const std::vector<double>& tau = *w.tau;
   CHECK_EQ(static_cast<int>(tau.size()), n);
