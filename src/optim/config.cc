@@ -5,6 +5,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -36,6 +37,14 @@ RayLossWeights LossesConfig::RayWeights() const {
   RayLossWeights w;
   for (int t = 0; t < kNumRayTerms; ++t) w[RayTerm(t)] = terms[t].weight;
   return w;
+}
+
+BoneRegistrationConfig BoneRegistrationConfig::AfterLastBatch() const {
+  BoneRegistrationConfig out = *this;
+  out.match_weight = after_last_batch.match_weight.value_or(match_weight);
+  out.mask_weight = after_last_batch.mask_weight.value_or(mask_weight);
+  out.coverage_weight = after_last_batch.coverage_weight.value_or(coverage_weight);
+  return out;
 }
 
 namespace {
@@ -135,6 +144,13 @@ void VisitFields(V& v, PoseSolveConfig& o) {
 }
 
 template <class V>
+void VisitFields(V& v, BoneRegistrationFinalWeights& o) {
+  v("match_weight", o.match_weight);
+  v("mask_weight", o.mask_weight);
+  v("coverage_weight", o.coverage_weight);
+}
+
+template <class V>
 void VisitFields(V& v, BoneRegistrationConfig& o) {
   v("at", o.at);
   v("resolution", o.resolution);
@@ -155,6 +171,7 @@ void VisitFields(V& v, BoneRegistrationConfig& o) {
   v("coverage_pixels", o.coverage_pixels);
   v("coverage_rounds", o.coverage_rounds);
   v("start", o.start);
+  v("after_last_batch", o.after_last_batch);
 }
 
 template <class V>
@@ -502,7 +519,8 @@ class FieldWriter {
   void WriteStruct(S& value) {
     // Small leaf structs on one line: rgb: {weight: 1, robust: {type: none, scale: 1}}.
     if (std::is_same_v<S, LossConfig> || std::is_same_v<S, RobustLossConfig> ||
-        std::is_same_v<S, PositionalEncodingOptions>) {
+        std::is_same_v<S, PositionalEncodingOptions> ||
+        std::is_same_v<S, BoneRegistrationFinalWeights>) {
       out_ << YAML::Flow;
     }
     out_ << YAML::BeginMap;
@@ -797,6 +815,20 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(r + ".coverage_weight", reg.coverage_weight);
   c.Positive(r + ".coverage_pixels", reg.coverage_pixels);
   c.Positive(r + ".coverage_rounds", reg.coverage_rounds);
+  const BoneRegistrationFinalWeights& last = reg.after_last_batch;
+  if (last.match_weight) c.Positive(r + ".after_last_batch.match_weight", *last.match_weight);
+  if (last.mask_weight) c.NonNegative(r + ".after_last_batch.mask_weight", *last.mask_weight);
+  if (last.coverage_weight) {
+    c.NonNegative(r + ".after_last_batch.coverage_weight", *last.coverage_weight);
+  }
+  const bool registers_last = std::any_of(reg.at.begin(), reg.at.end(),
+                                          [&](double f) { return s.BatchAt(f) == s.batches; });
+  if ((last.match_weight || last.mask_weight || last.coverage_weight) && !reg.at.empty() &&
+      !registers_last) {
+    c.Fail(r + ".after_last_batch",
+           "weights for a registration after the stage's last batch, but no fraction in "
+           "bone_registration.at registers there (1.0 does)");
+  }
 
   if (s.bone_steps_articulated && s.bone_steps_about_centres) {
     c.Fail(p + ".bone_steps_articulated",

@@ -440,9 +440,12 @@ void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProbl
                            RunContext* c) {
   for (double at : stage.bone_registration.at) {
     if (model_->num_bones() == 0 || batch_index != stage.BatchAt(at)) continue;
-    const BoneRegistrationReport report =
-        RegisterBoneMotion(model_.get(), dataset_, bounds_, stage.bone_registration,
-                           static_cast<uint32_t>(c->state->rng()));
+    // After the stage's last batch (`at` 1.0): its own weights, if set.
+    const BoneRegistrationConfig config = batch_index == stage.batches
+                                              ? stage.bone_registration.AfterLastBatch()
+                                              : stage.bone_registration;
+    const BoneRegistrationReport report = RegisterBoneMotion(
+        model_.get(), dataset_, bounds_, config, static_cast<uint32_t>(c->state->rng()));
     if (report.registered) {
       c->state->DropAdamMoments("bones_t");  // the bone transforms jumped
       sp->batch().Invalidate();

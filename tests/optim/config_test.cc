@@ -156,6 +156,13 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   // ... starting from the bones registered once more, with the mask term.
   EXPECT_EQ(s3.bone_registration.at, (std::vector<double>{0.0, 1.0}));
   EXPECT_EQ(s3.bone_registration.mask_weight, 10.0);
+  // ... and after its last batch with the masks counting more than the
+  // matches (the finished shape; no later batch moves the fit).
+  const BoneRegistrationConfig last = s3.bone_registration.AfterLastBatch();
+  EXPECT_GT(last.mask_weight / last.match_weight,
+            s3.bone_registration.mask_weight / s3.bone_registration.match_weight);
+  EXPECT_GT(last.coverage_weight / last.match_weight,
+            s3.bone_registration.coverage_weight / s3.bone_registration.match_weight);
   EXPECT_TRUE(s2.bone_registration.at.empty());
   EXPECT_NE(std::find(s3.constant.begin(), s3.constant.end(), G::kRoot), s3.constant.end());
   // ... rendered with NeuS's density and unbiased silhouettes (VolSDF before).
@@ -504,6 +511,17 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).bone_registration.coverage_pixels = 0; }},
       {"stages[1].bone_registration.coverage_rounds",
        [&](SolverConfig* c) { S(c).bone_registration.coverage_rounds = 0; }},
+      {"stages[1].bone_registration.after_last_batch.match_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.after_last_batch.match_weight = 0; }},
+      {"stages[1].bone_registration.after_last_batch.mask_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.after_last_batch.mask_weight = -1; }},
+      {"stages[1].bone_registration.after_last_batch.coverage_weight",
+       [&](SolverConfig* c) { S(c).bone_registration.after_last_batch.coverage_weight = -1; }},
+      {"stages[1].bone_registration.after_last_batch",  // no registration there
+       [&](SolverConfig* c) {
+         S(c).bone_registration.at = {0.5};
+         S(c).bone_registration.after_last_batch.mask_weight = 20;
+       }},
       {"model.delta_skinning.width",
        [&](SolverConfig* c) {
          c->model.delta_skinning.enabled = true;
@@ -796,7 +814,7 @@ SolverConfig EveryFieldChanged() {
     s.pose_solve.search_rotations = 24;
     s.pose_solve.search_keep = 2;
     s.pose_solve.bones = true;
-    s.bone_registration.at = {0.3, 0.6};
+    s.bone_registration.at = {0.3, 1.0};
     s.bone_registration.resolution = 64 + i;
     s.bone_registration.vertices = 500 + i;
     s.bone_registration.match_pixels = 300 + i;
@@ -815,6 +833,9 @@ SolverConfig EveryFieldChanged() {
     s.bone_registration.coverage_pixels = 300 + i;
     s.bone_registration.coverage_rounds = 4 + i;
     s.bone_registration.start = i == 0 ? RegistrationStart::kLowerCost : RegistrationStart::kOwn;
+    s.bone_registration.after_last_batch.match_weight = 1.5 + i;
+    s.bone_registration.after_last_batch.mask_weight = 20 + i;
+    s.bone_registration.after_last_batch.coverage_weight = 25 + i;
     s.bone_steps_about_centres = i == 0;  // the two are exclusive
     s.bone_steps_articulated = i != 0;
     s.checkpoint_every = 50;
@@ -966,6 +987,9 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(r.coverage_pixels, u.coverage_pixels);
     EXPECT_EQ(r.coverage_rounds, u.coverage_rounds);
     EXPECT_EQ(r.start, u.start);
+    EXPECT_EQ(r.after_last_batch.match_weight, u.after_last_batch.match_weight);
+    EXPECT_EQ(r.after_last_batch.mask_weight, u.after_last_batch.mask_weight);
+    EXPECT_EQ(r.after_last_batch.coverage_weight, u.after_last_batch.coverage_weight);
     EXPECT_EQ(s.bone_steps_about_centres, t.bone_steps_about_centres);
     EXPECT_EQ(s.bone_steps_articulated, t.bone_steps_articulated);
     EXPECT_EQ(s.schedule.delta_skinning_from, t.schedule.delta_skinning_from);
@@ -1039,6 +1063,34 @@ TEST(SolverConfig, RoundTripKeepsEveryField) {
 
 // model.auto_size: read, checked, written and read back; the delta-skinning
 // conflict says why.
+// A registration after the last batch takes the weights that are set
+// (`auto` in the resolved YAML: the registration's own).
+TEST(SolverConfig, AfterLastBatchWeightsOverrideOnlyWhatIsSet) {
+  const SolverConfig c = ParseSolverConfig(
+      "stages:\n  - bone_registration: {at: [1.0], match_weight: 8, mask_weight: 4, "
+      "coverage_weight: 6, after_last_batch: {mask_weight: 40}}\n",
+      "t.yaml");
+  const BoneRegistrationConfig& reg = c.stages[0].bone_registration;
+  const BoneRegistrationConfig last = reg.AfterLastBatch();
+  EXPECT_EQ(last.mask_weight, 40.0);
+  EXPECT_EQ(last.match_weight, 8.0);
+  EXPECT_EQ(last.coverage_weight, 6.0);
+  EXPECT_EQ(last.at, reg.at);
+  EXPECT_EQ(reg.mask_weight, 4.0);  // the other registrations keep their own
+  const std::string yaml = SolverConfigToYaml(c);
+  EXPECT_NE(yaml.find("after_last_batch: {match_weight: auto, mask_weight: 40, "
+                      "coverage_weight: auto}"),
+            std::string::npos)
+      << yaml;
+  const SolverConfig back = ParseSolverConfig(yaml, "resolved");
+  EXPECT_EQ(back.stages[0].bone_registration.after_last_batch.mask_weight, 40.0);
+  EXPECT_FALSE(back.stages[0].bone_registration.after_last_batch.match_weight.has_value());
+  EXPECT_THROW(ParseSolverConfig("stages:\n  - bone_registration: {after_last_batch: "
+                                 "{mask: 3}}\n",
+                                 "t.yaml"),
+               InputError);
+}
+
 TEST(SolverConfig, AutoSizeRoundTrips) {
   const SolverConfig c = ParseSolverConfig(
       "model:\n  num_bones: 4\n  auto_size: {enabled: true, max_bones: 16, grow_at: [0.5], "

@@ -684,6 +684,39 @@ TEST(Solver, BoneRegistrationAtTheStagesEndRunsAfterItsLastBatch) {
   EXPECT_GT(moved, 1e-3) << "no registration after the last batch";
 }
 
+// bone_registration.after_last_batch weighs only the registration after the
+// stage's last batch: with it set, the registration at the middle of the
+// stage (and every batch) is bit for bit the same, the last one is not.
+TEST(Solver, AfterLastBatchWeightsChangeOnlyTheLastRegistration) {
+  auto run = [](bool override_last) {
+    SolverConfig config = TinyConfig(StepRule::kAdam, 4);
+    config.stages[0].bone_registration = TinyRegistration({0.5, 1.0});
+    if (override_last) {
+      config.stages[0].bone_registration.after_last_batch.match_weight = 0.5;
+      config.stages[0].bone_registration.after_last_batch.mask_weight = 50.0;
+    }
+    const Dataset& data = TinyDataset();
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    std::vector<std::vector<double>> steps;
+    SolveOptions options = options_quiet();
+    options.on_batch = [&](const BatchProgress&, const Model& model) {
+      steps.push_back(model.frame(0, 2).bones_t);
+    };
+    solver.Run(options);
+    steps.push_back(solver.model().frame(0, 2).bones_t);
+    return steps;
+  };
+  const std::vector<std::vector<double>> plain = run(false), last = run(true);
+  ASSERT_EQ(plain.size(), 5u);
+  ASSERT_EQ(last.size(), 5u);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(plain[i], last[i]) << "batch " << i;
+  double moved = 0.0;
+  for (size_t i = 0; i < plain[4].size(); ++i) {
+    moved = std::max(moved, std::abs(plain[4][i] - last[4][i]));
+  }
+  EXPECT_GT(moved, 1e-4) << "the last registration ignored after_last_batch";
+}
+
 SolverConfig AutoSizeConfig(int iterations) {
   SolverConfig config = TinyConfig(StepRule::kAdam, iterations);
   config.model.auto_size.enabled = true;

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -222,6 +223,17 @@ struct PoseSolveConfig {
   bool bones = false;
 };
 
+// The weights of a registration after a stage's last batch (`at` 1.0), where
+// they differ from the stage's other registrations: there the shape is
+// finished and no later batch moves the fit, so the exact masks may count
+// more than the matches (problems/default.yaml). Unset: the registration's
+// own weight.
+struct BoneRegistrationFinalWeights {
+  std::optional<double> match_weight;
+  std::optional<double> mask_weight;
+  std::optional<double> coverage_weight;
+};
+
 // Bone motion registration on feature matches (optim/bone_registration.h;
 // docs/solver.md, "Bone registration"): at the given fractions of the stage,
 // each frame's bone transforms J_b^t fitted by Levenberg-Marquardt to
@@ -250,6 +262,10 @@ struct BoneRegistrationConfig {
   // the previous frame's fit, the frame's own current transforms, or
   // whichever of the two the terms but the coverage ties cost less.
   RegistrationStart start = RegistrationStart::kPrevious;
+  BoneRegistrationFinalWeights after_last_batch;  // a registration at `at` 1.0
+
+  // This config with after_last_batch's weights in place of its own.
+  BoneRegistrationConfig AfterLastBatch() const;
 };
 
 // Parameter groups held constant (ceres SetParameterBlockConstant):

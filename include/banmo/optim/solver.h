@@ -134,7 +134,8 @@ class Solver {
   void RunSchedules(int batch_index, double fraction, const StageRun& run, StageProblem* problem,
                     RunContext* c, SolveResult* result);
   // The bone registrations of the stage's bone_registration.at that fire at
-  // batch_index (the stage's batch count: after its last batch).
+  // batch_index (the stage's batch count: after its last batch, with
+  // bone_registration.after_last_batch's weights).
   void RegisterBones(int batch_index, const StageConfig& stage, StageProblem* problem,
                      RunContext* c);
   void Grow(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
