@@ -1061,8 +1061,6 @@ TEST(SolverConfig, RoundTripKeepsEveryField) {
   ExpectSame(d, ParseSolverConfig(SolverConfigToYaml(d), "defaults"));
 }
 
-// model.auto_size: read, checked, written and read back; the delta-skinning
-// conflict says why.
 // A registration after the last batch takes the weights that are set
 // (`auto` in the resolved YAML: the registration's own).
 TEST(SolverConfig, AfterLastBatchWeightsOverrideOnlyWhatIsSet) {
@@ -1091,6 +1089,8 @@ TEST(SolverConfig, AfterLastBatchWeightsOverrideOnlyWhatIsSet) {
                InputError);
 }
 
+// model.auto_size: read, checked, written and read back; the delta-skinning
+// conflict says why.
 TEST(SolverConfig, AutoSizeRoundTrips) {
   const SolverConfig c = ParseSolverConfig(
       "model:\n  num_bones: 4\n  auto_size: {enabled: true, max_bones: 16, grow_at: [0.5], "
