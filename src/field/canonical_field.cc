@@ -1,7 +1,9 @@
 #include "banmo/field/canonical_field.h"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 
 #include "banmo/util/logging.h"
@@ -195,63 +197,105 @@ void CanonicalField::InitializeParameters(uint32_t seed, double* sdf, double* co
 
 void CanonicalField::ForwardBatch(const double* sdf_params, const double* color_params,
                                   FieldBatch* batch, bool input_jacobians) const {
+  ForwardGeometryBatch(sdf_params, batch, input_jacobians);
+  std::vector<int> all(static_cast<std::size_t>(batch->size()));
+  std::iota(all.begin(), all.end(), 0);
+  ForwardColorBatch(color_params, all, batch, input_jacobians);
+}
+
+void CanonicalField::ForwardGeometryBatch(const double* sdf_params, FieldBatch* batch,
+                                          bool input_jacobians) const {
   CHECK(batch != nullptr);
   const int n = batch->size();
-  const int F = options_.geometry_feature_dim;
-  const int A = options_.appearance_code_dim;
-  const int V = options_.use_view_direction ? view_pe_.OutputDim() : 0;
-  if (options_.use_view_direction) CHECK_EQ(batch->view_dir.cols(), n) << "view_dir size";
-  if (A > 0) {
-    CHECK_EQ(batch->appearance.rows(), A) << "appearance rows";
-    CHECK_EQ(batch->appearance.cols(), n) << "appearance cols";
-  }
   pe_.EncodeBatch(batch->x, &batch->pe, input_jacobians ? &batch->dpe_dx : nullptr);
   if (!input_jacobians) batch->dpe_dx.resize(0, 0);
   Eigen::MatrixXd sdf_out;
   sdf_mlp_.ForwardBatch(sdf_params, batch->pe, &batch->sdf_cache, &sdf_out);
   batch->sdf = sdf_out.row(0).transpose();
-  batch->feature = sdf_out.bottomRows(F);
+  batch->feature = sdf_out.bottomRows(options_.geometry_feature_dim);
+  // No colour yet (BackwardBatch checks for it).
+  batch->rgb.resize(3, 0);
+  batch->color_columns.clear();
+  if (!input_jacobians) {
+    batch->dsdf_out_dx.resize(0, 0);
+    return;
+  }
+  // SDF MLP outputs wrt x: forward tangents with the 3 encoding columns.
+  sdf_mlp_.ForwardTangents(sdf_params, batch->sdf_cache, batch->dpe_dx, 3, &batch->dsdf_out_dx);
+  batch->dsdf_dx.resize(3, n);
+  for (int j = 0; j < n; ++j) {
+    batch->dsdf_dx.col(j) = batch->dsdf_out_dx.block(0, 3 * j, 1, 3).transpose();
+  }
+}
+
+void CanonicalField::ForwardColorBatch(const double* color_params, const std::vector<int>& columns,
+                                       FieldBatch* batch, bool input_jacobians) const {
+  CHECK(batch != nullptr);
+  const int n = batch->size();
+  const int m = static_cast<int>(columns.size());
+  const int F = options_.geometry_feature_dim;
+  const int A = options_.appearance_code_dim;
+  const int V = options_.use_view_direction ? view_pe_.OutputDim() : 0;
+  CHECK_EQ(batch->feature.cols(), n) << "call ForwardGeometryBatch first";
+  if (input_jacobians) {
+    CHECK_EQ(batch->dsdf_out_dx.cols(), 3 * n) << "call ForwardGeometryBatch with input_jacobians";
+  }
+  if (options_.use_view_direction) CHECK_EQ(batch->view_dir.cols(), n) << "view_dir size";
+  if (A > 0) {
+    CHECK_EQ(batch->appearance.rows(), A) << "appearance rows";
+    CHECK_EQ(batch->appearance.cols(), n) << "appearance cols";
+  }
+  for (int k = 0; k < m; ++k) {
+    CHECK(columns[k] >= 0 && columns[k] < n && (k == 0 || columns[k] > columns[k - 1]))
+        << "colour columns must ascend within [0, " << n << ")";
+  }
+  batch->color_columns = columns;
 
   Eigen::MatrixXd& cin = batch->color_input;
-  cin.resize(F + V + A, n);
-  cin.topRows(F) = batch->feature;
+  cin.resize(F + V + A, m);
+  for (int k = 0; k < m; ++k) cin.col(k).head(F) = batch->feature.col(columns[k]);
+  Eigen::MatrixXd dview_enc;  // V x 3m
   if (V > 0) {
+    Eigen::Matrix3Xd view(3, m);
+    for (int k = 0; k < m; ++k) view.col(k) = batch->view_dir.col(columns[k]);
     Eigen::MatrixXd view_enc;
-    view_pe_.EncodeBatch(batch->view_dir, &view_enc, input_jacobians ? &batch->dview_enc : nullptr);
+    view_pe_.EncodeBatch(view, &view_enc, input_jacobians ? &dview_enc : nullptr);
     cin.middleRows(F, V) = view_enc;
   }
-  if (A > 0) cin.bottomRows(A) = batch->appearance;
+  if (A > 0) {
+    for (int k = 0; k < m; ++k) cin.col(k).tail(A) = batch->appearance.col(columns[k]);
+  }
   Eigen::MatrixXd logits;
   color_mlp_.ForwardBatch(color_params, cin, &batch->color_cache, &logits);
   // Overflow-free sigmoid.
   const Eigen::ArrayXXd e = (-logits.array().abs()).exp();
-  batch->rgb = (logits.array() > 0.0).select(1.0 / (1.0 + e), e / (1.0 + e)).matrix();
+  const Eigen::MatrixXd rgb =
+      (logits.array() > 0.0).select(1.0 / (1.0 + e), e / (1.0 + e)).matrix();
+  batch->rgb.setZero(3, n);
+  for (int k = 0; k < m; ++k) batch->rgb.col(columns[k]) = rgb.col(k);
   if (!input_jacobians) return;
 
-  // SDF MLP outputs wrt x: forward tangents with the 3 encoding columns.
-  Eigen::MatrixXd t;  // (1+F) x 3n
-  sdf_mlp_.ForwardTangents(sdf_params, batch->sdf_cache, batch->dpe_dx, 3, &t);
-  batch->dsdf_dx.resize(3, n);
   // Colour MLP: one reverse pass per output channel gives d rgb_c / d input.
-  const Eigen::ArrayXXd ds = batch->rgb.array() * (1.0 - batch->rgb.array());  // sigmoid'
+  const Eigen::ArrayXXd ds = rgb.array() * (1.0 - rgb.array());  // sigmoid'
   std::vector<Eigen::MatrixXd> dcin(3);
   for (int c = 0; c < 3; ++c) {
-    Eigen::MatrixXd d_logits = Eigen::MatrixXd::Zero(3, n);
+    Eigen::MatrixXd d_logits = Eigen::MatrixXd::Zero(3, m);
     d_logits.row(c) = ds.row(c).matrix();
     color_mlp_.Backward(color_params, batch->color_cache, d_logits, {0}, nullptr, &dcin[c]);
   }
-  batch->drgb_dx.resize(3, 3 * n);
+  batch->drgb_dx.setZero(3, 3 * n);
   batch->drgb_dview.setZero(3, 3 * n);
-  batch->drgb_dappearance.resize(3, static_cast<Eigen::Index>(A) * n);
-  ParallelFor(n, [&](int begin, int end) {
+  batch->drgb_dappearance.setZero(3, static_cast<Eigen::Index>(A) * n);
+  const Eigen::MatrixXd& t = batch->dsdf_out_dx;
+  ParallelFor(m, [&](int begin, int end) {
     Eigen::MatrixXd jac(3, F + V + A);
-    for (int j = begin; j < end; ++j) {
-      batch->dsdf_dx.col(j) = t.block(0, 3 * j, 1, 3).transpose();
-      for (int c = 0; c < 3; ++c) jac.row(c) = dcin[c].col(j).transpose();
+    for (int k = begin; k < end; ++k) {
+      const int j = columns[k];
+      for (int c = 0; c < 3; ++c) jac.row(c) = dcin[c].col(k).transpose();
       batch->drgb_dx.middleCols(3 * j, 3).noalias() = jac.leftCols(F) * t.block(1, 3 * j, F, 3);
       if (V > 0) {
         batch->drgb_dview.middleCols(3 * j, 3).noalias() =
-            jac.middleCols(F, V) * batch->dview_enc.middleCols(3 * j, 3);
+            jac.middleCols(F, V) * dview_enc.middleCols(3 * k, 3);
       }
       if (A > 0) {
         batch->drgb_dappearance.middleCols(static_cast<Eigen::Index>(A) * j, A) = jac.rightCols(A);
@@ -271,6 +315,7 @@ void CanonicalField::ForwardSdfBatch(const double* sdf_params, FieldBatch* batch
   batch->sdf = sdf_out.row(0).transpose();
   batch->feature = sdf_out.bottomRows(options_.geometry_feature_dim);
   batch->rgb.resize(3, 0);
+  batch->color_columns.clear();
   batch->color_input.resize(0, 0);
   batch->color_cache = MlpCache();
   if (!sdf_gradient) return;
@@ -291,17 +336,38 @@ void CanonicalField::BackwardBatch(const double* sdf_params, const double* color
   const int F = options_.geometry_feature_dim;
   CHECK_EQ(d_sdf.size(), n);
   CHECK_EQ(d_rgb.cols(), n);
-  CHECK_EQ(batch.color_cache.num_samples(), n) << "call ForwardBatch first";
-  const Eigen::MatrixXd d_logits =
-      (d_rgb.array() * batch.rgb.array() * (1.0 - batch.rgb.array())).matrix();
+  CHECK_EQ(batch.rgb.cols(), n) << "call ForwardBatch (or ForwardColorBatch) first";
+  const std::vector<int>& cols = batch.color_columns;
+  const int m = static_cast<int>(cols.size());
+  CHECK_EQ(batch.color_cache.num_samples(), m);
+  // The colour MLP ran on cols only (all n, in order, when m = n).
+  const bool all = m == n;
+  Eigen::MatrixXd d_logits(3, m);
+  for (int k = 0; k < m; ++k) {
+    const int j = cols[k];
+    d_logits.col(k) =
+        (d_rgb.col(j).array() * batch.rgb.col(j).array() * (1.0 - batch.rgb.col(j).array()))
+            .matrix();
+  }
+  std::vector<int> color_groups = group_begin;
+  if (!all) {
+    for (int& g : color_groups) {
+      g = static_cast<int>(std::lower_bound(cols.begin(), cols.end(), g) - cols.begin());
+    }
+  }
   const bool need_sdf = d_sdf_params != nullptr || d_x != nullptr;
   Eigen::MatrixXd d_cin;
-  color_mlp_.Backward(color_params, batch.color_cache, d_logits, group_begin, d_color_params,
+  color_mlp_.Backward(color_params, batch.color_cache, d_logits, color_groups, d_color_params,
                       need_sdf ? &d_cin : nullptr);
   if (!need_sdf) return;
   Eigen::MatrixXd d_out(1 + F, n);
   d_out.row(0) = d_sdf.transpose();
-  d_out.bottomRows(F) = d_cin.topRows(F);
+  if (all) {
+    d_out.bottomRows(F) = d_cin.topRows(F);
+  } else {
+    d_out.bottomRows(F).setZero();
+    for (int k = 0; k < m; ++k) d_out.col(cols[k]).tail(F) = d_cin.col(k).head(F);
+  }
   Eigen::MatrixXd d_pe;
   sdf_mlp_.Backward(sdf_params, batch.sdf_cache, d_out, group_begin, d_sdf_params,
                     d_x != nullptr ? &d_pe : nullptr);

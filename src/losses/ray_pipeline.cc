@@ -246,13 +246,38 @@ void RayPipeline::PlaceSamples() {
 // candidates and the soft-argmax X_hat* (Eq. 15); MLP_Delta at the points
 // the forward warps push.
 void RayPipeline::EvaluateFields() {
-  if (!jacobians && !(weights[LossTerm::kRgb] > 0.0)) {
-    // No ray reads a colour (Ray::HasTerm) and nothing is differentiated
-    // (the importance pass's coarse evaluation, silhouette only): the SDF
-    // MLP alone, without the colour MLP.
+  // The colour MLP runs only where a ray reads a colour: at the samples of
+  // rays with the rgb term (Ray::HasTerm) whose rendering weight reaches
+  // kMinWarpTau (RayCompositeFunctor reads no other), so the weights come
+  // first, from the SDF values.
+  const bool any_color = weights[LossTerm::kRgb] > 0.0;
+  if (!jacobians && !any_color) {
+    // Nothing is differentiated and no colour read (the importance pass's
+    // coarse evaluation, silhouette only): no colour MLP state at all.
     field.ForwardSdfBatch(sdf_params, &fb, false);
   } else {
-    field.ForwardBatch(sdf_params, color_params, &fb, jacobians);
+    field.ForwardGeometryBatch(sdf_params, &fb, jacobians);
+  }
+  ParallelFor(num_rays, [&](int begin, int end) {
+    for (int r = begin; r < end; ++r) {
+      const RayScratch& s = scratch[r];
+      RayEvaluation& ev = (*out)[r];
+      ev.sdf.assign(fb.sdf.data() + s.field_offset, fb.sdf.data() + s.field_offset + s.num_samples);
+      ev.tau.resize(s.num_samples);
+      CompositeWeights(s.num_samples, ev.sdf.data(), *params[r].block[kBlockLogBeta],
+                       rays[r]->samples.deltas.data(), model.options().density, ev.tau.data());
+    }
+  });
+  if (jacobians || any_color) {
+    std::vector<int> columns;
+    for (int r = 0; r < num_rays && any_color; ++r) {
+      if (!rays[r]->HasTerm(LossTerm::kRgb, weights)) continue;
+      const std::vector<double>& tau = (*out)[r].tau;
+      for (int i = 0; i < scratch[r].num_samples; ++i) {
+        if (WarpsSample(tau[i])) columns.push_back(scratch[r].field_offset + i);
+      }
+    }
+    field.ForwardColorBatch(color_params, columns, &fb, jacobians);
   }
   if (total_emb > 0) {
     sb.x.resize(3, total_emb);
@@ -386,12 +411,8 @@ void RayPipeline::CompositeInputs(RayWork& w) {
     }
   }
   u[L.log_beta] = *p.block[kBlockLogBeta];
-  // Rendering weights, once: the flow below and RenderingWeights read them.
+  // Rendering weights: EvaluateFields computed them (ev.sdf, ev.tau).
   RayEvaluation& ev = w.ev;
-  ev.sdf.assign(u.begin() + L.sdf, u.begin() + L.sdf + n);
-  ev.tau.resize(n);
-  CompositeWeights(n, ev.sdf.data(), u[L.log_beta], ray.samples.deltas.data(),
-                   model.options().density, ev.tau.data());
   // Flow: each X*_i pushed with the forward warp of t' and projected (Eq. 6),
   // the samples the flow sums only (weight >= kMinWarpTau; the others'
   // displacements stay 0, unread).

@@ -114,6 +114,75 @@ TEST(CanonicalField, ForwardSdfBatchMatchesForwardBatch) {
   EXPECT_LT(ScaledError(dp1, dp2), kValueTol);
 }
 
+// ForwardColorBatch on some columns (the ray pipeline's samples that count):
+// at those columns rgb and its Jacobians are ForwardBatch's, elsewhere 0;
+// BackwardBatch with d_rgb at those columns gives ForwardBatch's gradients
+// (per group, and wrt the points) for the same d_rgb, the colour groups
+// mapped to the columns. Rounding: the same operations on the same values,
+// so to kValueTol; none of the columns (empty) leaves the SDF terms alone.
+TEST(CanonicalField, ColorOnSomeColumnsMatchesForwardBatch) {
+  Fixture f(SmallOptions());
+  const CanonicalField& field = f.field;
+  const int n = f.batch.size();
+  const int A = field.AppearanceCodeDim();
+  field.ForwardBatch(f.sdf.data(), f.color.data(), &f.batch, true);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Eigen::VectorXd d_sdf(n);
+  Eigen::Matrix3Xd d_rgb(3, n);
+  for (int j = 0; j < n; ++j) {
+    d_sdf[j] = u(rng);
+    for (int c = 0; c < 3; ++c) d_rgb(c, j) = u(rng);
+  }
+  // Columns in every group, none in one, and past the last group (20..22).
+  for (const std::vector<int>& columns :
+       {std::vector<int>{1, 2, 5, 9, 10, 17, 21}, std::vector<int>{}}) {
+    FieldBatch b;
+    b.x = f.batch.x;
+    b.view_dir = f.batch.view_dir;
+    b.appearance = f.batch.appearance;
+    field.ForwardGeometryBatch(f.sdf.data(), &b, true);
+    field.ForwardColorBatch(f.color.data(), columns, &b, true);
+    EXPECT_EQ(b.color_columns, columns);
+    EXPECT_LT((b.sdf - f.batch.sdf).cwiseAbs().maxCoeff(), kValueTol);
+    EXPECT_LT((b.dsdf_dx - f.batch.dsdf_dx).cwiseAbs().maxCoeff(), kValueTol);
+    Eigen::Matrix3Xd d_rgb_on = Eigen::Matrix3Xd::Zero(3, n);
+    std::vector<char> on(n, 0);
+    for (int j : columns) on[j] = 1, d_rgb_on.col(j) = d_rgb.col(j);
+    for (int j = 0; j < n; ++j) {
+      const double keep = on[j] ? 1.0 : 0.0;
+      EXPECT_LT((b.rgb.col(j) - keep * f.batch.rgb.col(j)).cwiseAbs().maxCoeff(), kValueTol) << j;
+      EXPECT_LT((b.drgb_dx.middleCols(3 * j, 3) - keep * f.batch.drgb_dx.middleCols(3 * j, 3))
+                    .cwiseAbs()
+                    .maxCoeff(),
+                kValueTol)
+          << j;
+      EXPECT_LT((b.drgb_dview.middleCols(3 * j, 3) - keep * f.batch.drgb_dview.middleCols(3 * j, 3))
+                    .cwiseAbs()
+                    .maxCoeff(),
+                kValueTol)
+          << j;
+      EXPECT_LT((b.drgb_dappearance.middleCols(A * j, A) -
+                 keep * f.batch.drgb_dappearance.middleCols(A * j, A))
+                    .cwiseAbs()
+                    .maxCoeff(),
+                kValueTol)
+          << j;
+    }
+    Eigen::MatrixXd dps, dpc, dps_ref, dpc_ref;
+    Eigen::Matrix3Xd dx, dx_ref;
+    field.BackwardBatch(f.sdf.data(), f.color.data(), b, d_sdf, d_rgb, kGroups, &dps, &dpc, &dx);
+    field.BackwardBatch(f.sdf.data(), f.color.data(), f.batch, d_sdf, d_rgb_on, kGroups, &dps_ref,
+                        &dpc_ref, &dx_ref);
+    EXPECT_LT(ScaledError(dps, dps_ref), kValueTol) << columns.size();
+    EXPECT_LT(ScaledError(dpc, dpc_ref), kValueTol) << columns.size();
+    EXPECT_LT(ScaledError(dx, dx_ref), kValueTol) << columns.size();
+    if (columns.empty()) {
+      EXPECT_EQ(dpc.cwiseAbs().maxCoeff(), 0.0);
+    }
+  }
+}
+
 TEST(CanonicalField, BackwardBatchPerGroupMatchesFullJetReference) {
   for (const bool view : {true, false}) {
     CanonicalFieldOptions o = SmallOptions();

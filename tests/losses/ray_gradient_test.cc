@@ -6,11 +6,13 @@
 #include <ceres/problem.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 #include <memory>
 #include <set>
 
 #include "banmo/losses/ray_batch.h"
+#include "banmo/losses/sample_weight.h"
 #include "common/test_scene.h"
 #include "jacobian_test_util.h"
 
@@ -73,18 +75,46 @@ struct Case {
   bool delta_skinning = false;
   bool feature_render_embedding_only = false;
   bool hold_cycle_tau = true;
+  // A sharper density than the scene's: the first beta (0.1 down to 0.06)
+  // that leaves some samples of the rgb rays under kMinWarpTau
+  // (losses/sample_weight.h), whose colour, flow and 3D cycle the pipeline
+  // skips, and some over it.
+  bool sharp_density = false;
 };
 
-class RayGradient : public ::testing::TestWithParam<Case> {};
-
-TEST_P(RayGradient, EqualsRhoPrimeJacobianTransposeResidual) {
-  const Case c = GetParam();
+TestScene MakeCaseScene(const Case& c) {
   TestSceneOptions o;
   o.num_bones = c.num_bones;
   o.delta_skinning = c.delta_skinning;
   o.feature_render_embedding_only = c.feature_render_embedding_only;
   o.hold_cycle_tau = c.hold_cycle_tau;
   TestScene scene = MakeTestScene(o);
+  if (c.sharp_density) {
+    RayBatch& batch = *scene.batch;
+    int skipped = 0, counted = 0;
+    for (double beta : {0.1, 0.09, 0.08, 0.07, 0.06}) {
+      *scene.model->log_beta() = std::log(beta);
+      batch.Invalidate();
+      batch.EvaluateAll(/*jacobians=*/false);
+      skipped = counted = 0;
+      for (int r = 0; r < batch.num_rays(); ++r) {
+        if (!batch.rays()[r].HasTerm(LossTerm::kRgb, batch.options().weights)) continue;
+        for (double tau : batch.evaluation(r).tau) ++(WarpsSample(tau) ? counted : skipped);
+      }
+      if (skipped >= 4 && counted >= 4) break;
+    }
+    EXPECT_GE(skipped, 4);
+    EXPECT_GE(counted, 4);
+    batch.Invalidate();
+  }
+  return scene;
+}
+
+class RayGradient : public ::testing::TestWithParam<Case> {};
+
+TEST_P(RayGradient, EqualsRhoPrimeJacobianTransposeResidual) {
+  const Case c = GetParam();
+  TestScene scene = MakeCaseScene(c);
   RayBatch& batch = *scene.batch;
   ceres::HuberLoss huber(0.1);
   RayRobustLosses robust{};
@@ -115,12 +145,7 @@ TEST_P(RayGradient, EqualsRhoPrimeJacobianTransposeResidual) {
 // must match.
 TEST_P(RayGradient, EqualsCeresProblemEvaluateWithConstantBlocks) {
   const Case c = GetParam();
-  TestSceneOptions o;
-  o.num_bones = c.num_bones;
-  o.delta_skinning = c.delta_skinning;
-  o.feature_render_embedding_only = c.feature_render_embedding_only;
-  o.hold_cycle_tau = c.hold_cycle_tau;
-  TestScene scene = MakeTestScene(o);
+  TestScene scene = MakeCaseScene(c);
   Model& model = *scene.model;
   RayBatch& batch = *scene.batch;
   ceres::HuberLoss huber(0.1);
@@ -184,7 +209,8 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"delta_skinning_plain", 3, false, true},
                       Case{"delta_skinning_huber", 3, true, true},
                       Case{"feature_render_embedding_only", 3, true, false, true},
-                      Case{"own_cycle_tau", 3, true, true, false, false}),
+                      Case{"own_cycle_tau", 3, true, true, false, false},
+                      Case{"negligible_samples", 3, true, true, false, false, true}),
     [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
 
 }  // namespace

@@ -294,11 +294,13 @@ TEST(RayBatch, NeusDensityMatchesFullJetReference) {
 }
 
 // Samples of weight below kMinWarpTau (losses/sample_weight.h) are left out
-// of the flow and the 3D cycle, and the pipeline skips their forward warps.
+// of the colour, the flow and the 3D cycle, and the pipeline skips their
+// colour MLP and forward warps.
 // The test rays' samples lie 0.67-0.9 outside the random surface: a sharper
 // density (the first beta below that splits them) leaves some of each ray's
-// samples under the bound. Flow and 3D cycle still match the full-Jet
-// reference, which warps every sample and leaves them out in the functors;
+// samples under the bound. Colour, flow and 3D cycle still match the
+// full-Jet reference, which evaluates and warps every sample and leaves them
+// out in the functors;
 // the 3D-cycle rows of the skipped samples are 0. With and without delta
 // skinning (its forward logits are computed for every sample and read only
 // for the warped ones).
@@ -330,7 +332,7 @@ TEST(RayBatch, SamplesOfNegligibleWeightMatchFullJetReference) {
         for (int c = 0; c < 3; ++c) EXPECT_EQ(ev.residuals[row + 3 * i + c], 0.0);
       }
     }
-    for (LossTerm term : {LossTerm::kFlow, LossTerm::kCycle3d}) {
+    for (LossTerm term : {LossTerm::kRgb, LossTerm::kFlow, LossTerm::kCycle3d}) {
       for (int r = 0; r < batch.num_rays(); ++r) {
         const std::string what = std::string(LossTermName(term)) + " ray " + std::to_string(r) +
                                  (delta ? " (delta)" : "");

@@ -80,22 +80,26 @@ struct FieldBatch {
 
   // Outputs.
   Eigen::VectorXd sdf;      // n
-  Eigen::Matrix3Xd rgb;     // 3 x n, in (0, 1)
+  Eigen::Matrix3Xd rgb;     // 3 x n, in (0, 1); 0 at the columns the colour skipped
   Eigen::MatrixXd feature;  // geometry feature (F x n)
 
-  // Input Jacobians (filled when ForwardBatch(..., input_jacobians = true)).
+  // Input Jacobians (filled when ForwardBatch(..., input_jacobians = true));
+  // the colour's are 0 at the columns it skipped.
   Eigen::Matrix3Xd dsdf_dx;          // SDF gradient, column j = grad_x sdf(x_j)
   Eigen::MatrixXd drgb_dx;           // 3 x 3n, block j = d rgb_j / d x_j
   Eigen::MatrixXd drgb_dview;        // 3 x 3n, block j = d rgb_j / d view_dir_j (0 if unused)
   Eigen::MatrixXd drgb_dappearance;  // 3 x (A n), block j = d rgb_j / d appearance_j
 
+  // The columns the colour MLP ran on (ascending; ForwardColorBatch).
+  std::vector<int> color_columns;
+
   // Caches (internal to CanonicalField).
   Eigen::MatrixXd pe;      // PE(x), D x n
   Eigen::MatrixXd dpe_dx;  // D x 3n
   MlpCache sdf_cache;
-  Eigen::MatrixXd color_input;  // [feature; PE_view(view); appearance]
-  Eigen::MatrixXd dview_enc;    // V x 3n (view encoding Jacobian)
-  MlpCache color_cache;
+  Eigen::MatrixXd dsdf_out_dx;  // (1 + F) x 3n: d [sdf; feature]_j / d x_j (input Jacobians)
+  Eigen::MatrixXd color_input;  // [feature; PE_view(view); appearance] of color_columns
+  MlpCache color_cache;         // of color_columns
 
   int size() const { return static_cast<int>(x.cols()); }
 };
@@ -165,9 +169,23 @@ class CanonicalField {
 
   // Batched forward over batch->x (and view_dir / appearance). With
   // input_jacobians, also fills dsdf_dx, drgb_dx, drgb_dview,
-  // drgb_dappearance.
+  // drgb_dappearance. The same as ForwardGeometryBatch followed by
+  // ForwardColorBatch on every column.
   void ForwardBatch(const double* sdf_params, const double* color_params, FieldBatch* batch,
                     bool input_jacobians) const;
+
+  // ForwardBatch in two steps, for a caller that picks the colour's columns
+  // from the SDF values (the ray pipeline leaves out samples of negligible
+  // rendering weight, losses/sample_weight.h). ForwardGeometryBatch: the
+  // SDF MLP at every column (sdf, feature; with input_jacobians dsdf_dx and
+  // the features' Jacobians the colour's need). ForwardColorBatch, after it
+  // with the same input_jacobians: the colour MLP at `columns` only
+  // (ascending, in [0, n)); rgb and its Jacobians are 0 at the others, and
+  // BackwardBatch reads only the d_rgb of `columns`.
+  void ForwardGeometryBatch(const double* sdf_params, FieldBatch* batch,
+                            bool input_jacobians) const;
+  void ForwardColorBatch(const double* color_params, const std::vector<int>& columns,
+                         FieldBatch* batch, bool input_jacobians) const;
 
   // SDF MLP only (e.g. eikonal samples, mesh extraction): fills batch->sdf,
   // batch->feature and, with sdf_gradient, batch->dsdf_dx (one reverse pass).

@@ -117,8 +117,9 @@ struct CompositeLocals {
 // (Eqs. 4-7: colour, opacity, expected positions and flow, embedding) and
 // evaluates the rgb, silhouette, flow, feature-match, 2D-cycle and
 // rendered-embedding residuals (Eqs. 16-18) of the ray's active terms, in
-// LossTerm order. The flow sums only samples of weight tau_i >= kMinWarpTau
-// (losses/sample_weight.h): the other samples' displacements are not read.
+// LossTerm order. The colour and the flow sum only samples of weight tau_i
+// >= kMinWarpTau (losses/sample_weight.h): the other samples' colours and
+// displacements are not read.
 // Input u laid out as CompositeLocals. (Names: docs/design.md, "Names".)
 class RayCompositeFunctor {
  public:
@@ -157,6 +158,7 @@ class RayCompositeFunctor {
     if (active(LossTerm::kRgb)) {
       T color[3] = {T(0), T(0), T(0)};
       for (int i = 0; i < n; ++i) {
+        if (!WarpsSample(tau[i])) continue;  // weight below kMinWarpTau: left out
         for (int k = 0; k < 3; ++k) color[k] += tau[i] * u[locals_.rgb + 3 * i + k];
       }
       RgbLoss(ray_.rgb, weights_[LossTerm::kRgb])(color, residual + row);
