@@ -203,19 +203,30 @@ void CanonicalField::ForwardBatch(const double* sdf_params, const double* color_
   ForwardColorBatch(color_params, all, batch, input_jacobians);
 }
 
-void CanonicalField::ForwardGeometryBatch(const double* sdf_params, FieldBatch* batch,
-                                          bool input_jacobians) const {
+namespace {
+
+// The SDF MLP at every column of the batch (sdf, feature; with
+// encoding_jacobian also dpe_dx), and no colour yet (BackwardBatch checks
+// for it): the common start of ForwardGeometryBatch and ForwardSdfBatch.
+void ForwardSdfMlp(const PositionalEncoding& pe, const Mlp& sdf_mlp, int feature_dim,
+                   const double* sdf_params, bool encoding_jacobian, FieldBatch* batch) {
   CHECK(batch != nullptr);
-  const int n = batch->size();
-  pe_.EncodeBatch(batch->x, &batch->pe, input_jacobians ? &batch->dpe_dx : nullptr);
-  if (!input_jacobians) batch->dpe_dx.resize(0, 0);
+  pe.EncodeBatch(batch->x, &batch->pe, encoding_jacobian ? &batch->dpe_dx : nullptr);
+  if (!encoding_jacobian) batch->dpe_dx.resize(0, 0);
   Eigen::MatrixXd sdf_out;
-  sdf_mlp_.ForwardBatch(sdf_params, batch->pe, &batch->sdf_cache, &sdf_out);
+  sdf_mlp.ForwardBatch(sdf_params, batch->pe, &batch->sdf_cache, &sdf_out);
   batch->sdf = sdf_out.row(0).transpose();
-  batch->feature = sdf_out.bottomRows(options_.geometry_feature_dim);
-  // No colour yet (BackwardBatch checks for it).
+  batch->feature = sdf_out.bottomRows(feature_dim);
   batch->rgb.resize(3, 0);
   batch->color_columns.clear();
+}
+
+}  // namespace
+
+void CanonicalField::ForwardGeometryBatch(const double* sdf_params, FieldBatch* batch,
+                                          bool input_jacobians) const {
+  ForwardSdfMlp(pe_, sdf_mlp_, options_.geometry_feature_dim, sdf_params, input_jacobians, batch);
+  const int n = batch->size();
   if (!input_jacobians) {
     batch->dsdf_out_dx.resize(0, 0);
     return;
@@ -306,16 +317,8 @@ void CanonicalField::ForwardColorBatch(const double* color_params, const std::ve
 
 void CanonicalField::ForwardSdfBatch(const double* sdf_params, FieldBatch* batch,
                                      bool sdf_gradient) const {
-  CHECK(batch != nullptr);
+  ForwardSdfMlp(pe_, sdf_mlp_, options_.geometry_feature_dim, sdf_params, sdf_gradient, batch);
   const int n = batch->size();
-  pe_.EncodeBatch(batch->x, &batch->pe, sdf_gradient ? &batch->dpe_dx : nullptr);
-  if (!sdf_gradient) batch->dpe_dx.resize(0, 0);
-  Eigen::MatrixXd sdf_out;
-  sdf_mlp_.ForwardBatch(sdf_params, batch->pe, &batch->sdf_cache, &sdf_out);
-  batch->sdf = sdf_out.row(0).transpose();
-  batch->feature = sdf_out.bottomRows(options_.geometry_feature_dim);
-  batch->rgb.resize(3, 0);
-  batch->color_columns.clear();
   batch->color_input.resize(0, 0);
   batch->color_cache = MlpCache();
   if (!sdf_gradient) return;
