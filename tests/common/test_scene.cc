@@ -1,9 +1,11 @@
 #include "common/test_scene.h"
 
+#include <cmath>
 #include <random>
 
 #include "banmo/deform/bones.h"
 #include "banmo/geometry/se3.h"
+#include "banmo/losses/sample_weight.h"
 #include "banmo/volume/ray_samples.h"
 
 namespace banmo {
@@ -112,6 +114,25 @@ TestScene MakeTestScene(const TestSceneOptions& o) {
   }
   scene.batch->SetRays(std::move(rays));
   return scene;
+}
+
+SampleWeightSplit SharpenDensityUntilSomeSamplesSkip(TestScene& scene, std::optional<LossTerm> term,
+                                                     int min_each) {
+  RayBatch& batch = *scene.batch;
+  SampleWeightSplit split;
+  for (double beta : {0.1, 0.09, 0.08, 0.07, 0.06}) {
+    *scene.model->log_beta() = std::log(beta);
+    batch.Invalidate();
+    batch.EvaluateAll(/*jacobians=*/false);
+    split = SampleWeightSplit();
+    for (int r = 0; r < batch.num_rays(); ++r) {
+      if (term && !batch.rays()[r].HasTerm(*term, batch.options().weights)) continue;
+      for (double tau : batch.evaluation(r).tau)
+        ++(WarpsSample(tau) ? split.counted : split.skipped);
+    }
+    if (split.skipped >= min_each && split.counted >= min_each) break;
+  }
+  return split;
 }
 
 }  // namespace banmo

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "banmo/losses/ray_batch.h"
@@ -56,5 +57,22 @@ struct TestScene {
 // Two frames of one 64 x 64 video, object about 3 units from the camera;
 // every ray is an object pixel with flow to the other frame and a feature.
 TestScene MakeTestScene(const TestSceneOptions& options);
+
+// Samples of a batch on each side of kMinWarpTau (losses/sample_weight.h).
+struct SampleWeightSplit {
+  int skipped = 0;  // tau < kMinWarpTau: no colour, flow or 3D cycle
+  int counted = 0;  // tau >= kMinWarpTau
+};
+
+// The test rays' samples lie 0.67-0.9 outside the random surface, so at the
+// scene's beta every sample counts. Sets log beta to the first of 0.1, 0.09,
+// 0.08, 0.07, 0.06 that leaves at least `min_each` samples on each side of
+// kMinWarpTau, counting the samples of the rays with `term` (every ray if
+// none), and returns that split (the last beta's if none does). The batch is
+// left evaluated without Jacobians at that beta. Needs hold_cycle_tau off for
+// the 3D cycle's weights to follow.
+SampleWeightSplit SharpenDensityUntilSomeSamplesSkip(TestScene& scene,
+                                                     std::optional<LossTerm> term = std::nullopt,
+                                                     int min_each = 4);
 
 }  // namespace banmo

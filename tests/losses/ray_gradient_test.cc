@@ -6,13 +6,11 @@
 #include <ceres/problem.h>
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <map>
 #include <memory>
 #include <set>
 
 #include "banmo/losses/ray_batch.h"
-#include "banmo/losses/sample_weight.h"
 #include "common/test_scene.h"
 #include "jacobian_test_util.h"
 
@@ -75,8 +73,8 @@ struct Case {
   bool delta_skinning = false;
   bool feature_render_embedding_only = false;
   bool hold_cycle_tau = true;
-  // A sharper density than the scene's: the first beta (0.1 down to 0.06)
-  // that leaves some samples of the rgb rays under kMinWarpTau
+  // A sharper density than the scene's (SharpenDensityUntilSomeSamplesSkip,
+  // tests/common) that leaves some samples of the rgb rays under kMinWarpTau
   // (losses/sample_weight.h), whose colour, flow and 3D cycle the pipeline
   // skips, and some over it.
   bool sharp_density = false;
@@ -90,22 +88,10 @@ TestScene MakeCaseScene(const Case& c) {
   o.hold_cycle_tau = c.hold_cycle_tau;
   TestScene scene = MakeTestScene(o);
   if (c.sharp_density) {
-    RayBatch& batch = *scene.batch;
-    int skipped = 0, counted = 0;
-    for (double beta : {0.1, 0.09, 0.08, 0.07, 0.06}) {
-      *scene.model->log_beta() = std::log(beta);
-      batch.Invalidate();
-      batch.EvaluateAll(/*jacobians=*/false);
-      skipped = counted = 0;
-      for (int r = 0; r < batch.num_rays(); ++r) {
-        if (!batch.rays()[r].HasTerm(LossTerm::kRgb, batch.options().weights)) continue;
-        for (double tau : batch.evaluation(r).tau) ++(WarpsSample(tau) ? counted : skipped);
-      }
-      if (skipped >= 4 && counted >= 4) break;
-    }
-    EXPECT_GE(skipped, 4);
-    EXPECT_GE(counted, 4);
-    batch.Invalidate();
+    const SampleWeightSplit split = SharpenDensityUntilSomeSamplesSkip(scene, LossTerm::kRgb);
+    EXPECT_GE(split.skipped, 4);
+    EXPECT_GE(split.counted, 4);
+    scene.batch->Invalidate();
   }
   return scene;
 }

@@ -295,13 +295,11 @@ TEST(RayBatch, NeusDensityMatchesFullJetReference) {
 
 // Samples of weight below kMinWarpTau (losses/sample_weight.h) are left out
 // of the colour, the flow and the 3D cycle, and the pipeline skips their
-// colour MLP and forward warps.
-// The test rays' samples lie 0.67-0.9 outside the random surface: a sharper
-// density (the first beta below that splits them) leaves some of each ray's
-// samples under the bound. Colour, flow and 3D cycle still match the
+// colour MLP and forward warps. A sharper density
+// (SharpenDensityUntilSomeSamplesSkip, tests/common) leaves some of the
+// rays' samples under the bound. Colour, flow and 3D cycle still match the
 // full-Jet reference, which evaluates and warps every sample and leaves them
-// out in the functors;
-// the 3D-cycle rows of the skipped samples are 0. With and without delta
+// out in the functors; the 3D-cycle rows of the skipped samples are 0. With and without delta
 // skinning (its forward logits are computed for every sample and read only
 // for the warped ones).
 TEST(RayBatch, SamplesOfNegligibleWeightMatchFullJetReference) {
@@ -310,19 +308,9 @@ TEST(RayBatch, SamplesOfNegligibleWeightMatchFullJetReference) {
     options.hold_cycle_tau = false;  // the weights follow log beta below
     TestScene scene = MakeTestScene(options);
     RayBatch& batch = *scene.batch;
-    int skipped = 0, warped = 0;
-    for (double beta : {0.1, 0.09, 0.08, 0.07, 0.06}) {
-      *scene.model->log_beta() = std::log(beta);
-      batch.Invalidate();
-      batch.EvaluateAll(/*jacobians=*/false);
-      skipped = warped = 0;
-      for (int r = 0; r < batch.num_rays(); ++r) {
-        for (double tau : batch.evaluation(r).tau) ++(WarpsSample(tau) ? warped : skipped);
-      }
-      if (skipped >= 4 && warped >= 4) break;
-    }
-    ASSERT_GE(skipped, 4);
-    ASSERT_GE(warped, 4);
+    const SampleWeightSplit split = SharpenDensityUntilSomeSamplesSkip(scene);
+    ASSERT_GE(split.skipped, 4);
+    ASSERT_GE(split.counted, 4);
     for (int r = 0; r < batch.num_rays(); ++r) {
       const RayEvaluation& ev = batch.evaluation(r);
       const int row = ev.term_row[static_cast<int>(LossTerm::kCycle3d)];
