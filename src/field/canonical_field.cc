@@ -428,9 +428,14 @@ void CanonicalField::ForwardEmbeddingBatch(const double* params, EmbeddingBatch*
                                            bool input_jacobians) const {
   CHECK(batch != nullptr);
   const int n = batch->size();
-  pe_.EncodeBatch(batch->x, &batch->pe, &batch->dpe_dx);
+  // The encoding's Jacobian (D x 3n) only where it is read: the match
+  // grid's and the embedding-only samples' batches do without.
+  pe_.EncodeBatch(batch->x, &batch->pe, input_jacobians ? &batch->dpe_dx : nullptr);
   embedding_mlp_.ForwardBatch(params, batch->pe, &batch->cache, &batch->psi);
-  if (!input_jacobians) return;
+  if (!input_jacobians) {
+    batch->dpe_dx.resize(0, 0);
+    return;
+  }
   Eigen::MatrixXd t;
   embedding_mlp_.ForwardTangents(params, batch->cache, batch->dpe_dx, 3, &t);
   batch->dpsi_dx = std::move(t);
@@ -449,7 +454,10 @@ void CanonicalField::BackwardEmbeddingBatch(const double* params, const Embeddin
   Eigen::MatrixXd d_pe;
   embedding_mlp_.Backward(params, batch.cache, d_psi, group_begin, d_params,
                           d_x != nullptr ? &d_pe : nullptr);
-  if (d_x != nullptr) ChainEncodingTranspose(batch.dpe_dx, d_pe, d_x);
+  if (d_x != nullptr) {
+    CHECK_EQ(batch.dpe_dx.cols(), 3 * n) << "d_x needs ForwardEmbeddingBatch with input_jacobians";
+    ChainEncodingTranspose(batch.dpe_dx, d_pe, d_x);
+  }
 }
 
 }  // namespace banmo

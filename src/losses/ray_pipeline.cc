@@ -123,9 +123,6 @@ void RayPipeline::Layout() {
     s.num_match = match ? static_cast<int>(ray.match_indices.size()) : 0;
     s.match_offset = match_groups[r];
     match_groups[r + 1] = match_groups[r] + s.num_match;
-    s.num_emb = ray.HasTerm(LossTerm::kFeatureRender, weights) ? s.num_samples : 0;
-    s.emb_offset = emb_groups[r];
-    emb_groups[r + 1] = emb_groups[r] + s.num_emb;
     s.fw_offset = fw_groups[r];
     int fw_count = 0;
     if (delta != nullptr) {
@@ -139,7 +136,6 @@ void RayPipeline::Layout() {
   }
   total_samples = field_groups[num_rays];
   total_match = match_groups[num_rays];
-  total_emb = emb_groups[num_rays];
   total_fw = fw_groups[num_rays];
 }
 
@@ -268,6 +264,21 @@ void RayPipeline::EvaluateFields() {
                        rays[r]->samples.deltas.data(), model.options().density, ev.tau.data());
     }
   });
+  // The rendered embedding reads the same samples (RayCompositeFunctor).
+  for (int r = 0; r < num_rays; ++r) {
+    RayScratch& s = scratch[r];
+    s.emb_samples.clear();
+    if (rays[r]->HasTerm(LossTerm::kFeatureRender, weights)) {
+      const std::vector<double>& tau = (*out)[r].tau;
+      for (int i = 0; i < s.num_samples; ++i) {
+        if (WarpsSample(tau[i])) s.emb_samples.push_back(i);
+      }
+    }
+    s.num_emb = static_cast<int>(s.emb_samples.size());
+    s.emb_offset = emb_groups[r];
+    emb_groups[r + 1] = emb_groups[r] + s.num_emb;
+  }
+  total_emb = emb_groups[num_rays];
   if (jacobians || any_color) {
     std::vector<int> columns;
     for (int r = 0; r < num_rays && any_color; ++r) {
@@ -283,7 +294,8 @@ void RayPipeline::EvaluateFields() {
     sb.x.resize(3, total_emb);
     for (int r = 0; r < num_rays; ++r) {
       const RayScratch& s = scratch[r];
-      if (s.num_emb > 0) sb.x.middleCols(s.emb_offset, s.num_emb) = s.x_star;
+      for (int j = 0; j < s.num_emb; ++j)
+        sb.x.col(s.emb_offset + j) = s.x_star.col(s.emb_samples[j]);
     }
     // d psi / d X*_i only when the term moves the samples (not embedding-only).
     field.ForwardEmbeddingBatch(embedding_params, &sb,
@@ -446,8 +458,11 @@ void RayPipeline::CompositeInputs(RayWork& w) {
   }
   if (L.has_embedding) {
     constexpr int E = CompositeLocals::kEmbeddingDim;
-    for (int i = 0; i < n; ++i) {
-      for (int c = 0; c < E; ++c) u[L.embedding + E * i + c] = sb.psi(c, s.emb_offset + i);
+    // The samples left out (weight under kMinWarpTau) are not read.
+    std::fill(u.begin() + L.embedding, u.begin() + L.embedding + E * n, 0.0);
+    for (int j = 0; j < s.num_emb; ++j) {
+      const int i = s.emb_samples[j];
+      for (int c = 0; c < E; ++c) u[L.embedding + E * i + c] = sb.psi(c, s.emb_offset + j);
     }
   }
   // 2D cycle: X_hat* pushed forward to t and projected (Eq. 18).
@@ -605,18 +620,18 @@ void RayPipeline::ReverseComposite(RayWork& w) {
       a_xstar += D.middleCols(L.canonical, 3 * n);
       s.a_xhat += D.middleCols(L.matched, 3);
     }
-    if (L.has_embedding) s.a_psi = D.middleCols(L.embedding, s.a_psi.cols());
+    if (L.has_embedding) {
+      constexpr int E = CompositeLocals::kEmbeddingDim;
+      for (int j = 0; j < s.num_emb; ++j) {
+        s.a_psi.middleCols<E>(E * j) = D.middleCols<E>(L.embedding + E * s.emb_samples[j]);
+      }
+    }
     jac[kBlockLogBeta].topRows(Rc).col(0) += D.col(L.log_beta);
   }
   // Field inputs: X*_i, view direction, appearance code.
   for (int i = 0; i < n && Rc > 0; ++i) {
     const int col = s.field_offset + i;
     a_xstar.middleCols<3>(3 * i).noalias() += s.a_sdf.col(i) * fb.dsdf_dx.col(col).transpose();
-    if (L.has_embedding && !options_.feature_render_embedding_only) {
-      constexpr int E = CompositeLocals::kEmbeddingDim;
-      a_xstar.middleCols<3>(3 * i).noalias() +=
-          s.a_psi.middleCols<E>(E * i) * sb.dpsi_dx.middleCols<3>(3 * (s.emb_offset + i));
-    }
     if (L.has_rgb) {
       const auto a_rgb_i = s.a_rgb.middleCols<3>(3 * i);
       a_xstar.middleCols<3>(3 * i).noalias() += a_rgb_i * fb.drgb_dx.middleCols<3>(3 * col);
@@ -626,6 +641,15 @@ void RayPipeline::ReverseComposite(RayWork& w) {
       if (A > 0) {
         AddProduct(&jac[kBlockAppearance], 0, a_rgb_i, fb.drgb_dappearance.middleCols(A * col, A));
       }
+    }
+  }
+  // The rendered embedding's samples (unless embedding-only: then the
+  // term does not move them).
+  if (Rc > 0 && L.has_embedding && !options_.feature_render_embedding_only) {
+    constexpr int E = CompositeLocals::kEmbeddingDim;
+    for (int j = 0; j < s.num_emb; ++j) {
+      a_xstar.middleCols<3>(3 * s.emb_samples[j]).noalias() +=
+          s.a_psi.middleCols<E>(E * j) * sb.dpsi_dx.middleCols<3>(3 * (s.emb_offset + j));
     }
   }
   // Flow: displacement_i = Pi_{t'}(G^{t'} W^{t',->}(X*_i)) - x.

@@ -103,9 +103,12 @@ struct RayScratch {
   int field_offset = 0;  // first column of the ray's samples in the field batch
   int match_offset = 0;  // first column of the ray's K grid points in the embedding batch
   int num_match = 0;     // K (0 if the ray has no feature terms)
-  // The ray's samples in the sample-embedding batch (rendered embedding).
+  // The ray's samples in the sample-embedding batch (rendered embedding):
+  // those of weight tau_i >= kMinWarpTau (the only ones the rendered
+  // embedding reads), in order; none without the feature_render term.
   int emb_offset = 0;
-  int num_emb = 0;  // N, or 0 without the feature_render term
+  int num_emb = 0;               // emb_samples.size()
+  std::vector<int> emb_samples;  // their sample indices i
   int composite_rows = 0;
   Eigen::Matrix3Xd x_root, x_star;
   std::vector<Mat37> dxroot_droot;
@@ -116,7 +119,7 @@ struct RayScratch {
   Mat34 dview_dk = Mat34::Zero();
   Eigen::Vector3d x_hat = Eigen::Vector3d::Zero();
   RowMajorMatrix a_sdf, a_rgb, a_xhat;  // adjoints for the batched MLP backward
-  RowMajorMatrix a_psi;                 // rows x 16N: of psi(X*_i), sample-major
+  RowMajorMatrix a_psi;                 // rows x 16 num_emb: of psi(X*_i), i in emb_samples
   // Delta skinning: the ray's columns in the forward-warp batch (X*_i when
   // the flow or the 3D cycle pushes them forward, then X_hat* for the 2D
   // cycle), and the adjoints of the delta logits (rows x B per column) of the

@@ -294,17 +294,23 @@ TEST(RayBatch, NeusDensityMatchesFullJetReference) {
 }
 
 // Samples of weight below kMinWarpTau (losses/sample_weight.h) are left out
-// of the colour, the flow and the 3D cycle, and the pipeline skips their
-// colour MLP and forward warps. A sharper density
-// (SharpenDensityUntilSomeSamplesSkip, tests/common) leaves some of the
-// rays' samples under the bound. Colour, flow and 3D cycle still match the
-// full-Jet reference, which evaluates and warps every sample and leaves them
-// out in the functors; the 3D-cycle rows of the skipped samples are 0. With and without delta
-// skinning (its forward logits are computed for every sample and read only
-// for the warped ones).
+// of the colour, the flow, the 3D cycle and the rendered embedding, and the
+// pipeline skips their colour MLP, embedding MLP and forward warps. A sharper
+// density (SharpenDensityUntilSomeSamplesSkip, tests/common) leaves some of
+// the rays' samples under the bound. Colour, flow, 3D cycle and rendered
+// embedding still match the full-Jet reference, which evaluates and warps
+// every sample and leaves them out in the functors; the 3D-cycle rows of the
+// skipped samples are 0. With and without delta skinning (its forward logits
+// are computed for every sample and read only for the warped ones), and
+// with the rendered embedding moving the embedding alone.
 TEST(RayBatch, SamplesOfNegligibleWeightMatchFullJetReference) {
-  for (bool delta : {false, true}) {
+  struct Variant {
+    bool delta, embedding_only;
+  };
+  for (const Variant v : {Variant{false, false}, Variant{true, false}, Variant{false, true}}) {
+    const bool delta = v.delta;
     TestSceneOptions options = delta ? DeltaSceneOptions() : TestSceneOptions();
+    options.feature_render_embedding_only = v.embedding_only;
     options.hold_cycle_tau = false;  // the weights follow log beta below
     TestScene scene = MakeTestScene(options);
     RayBatch& batch = *scene.batch;
@@ -320,10 +326,12 @@ TEST(RayBatch, SamplesOfNegligibleWeightMatchFullJetReference) {
         for (int c = 0; c < 3; ++c) EXPECT_EQ(ev.residuals[row + 3 * i + c], 0.0);
       }
     }
-    for (LossTerm term : {LossTerm::kRgb, LossTerm::kFlow, LossTerm::kCycle3d}) {
+    for (LossTerm term :
+         {LossTerm::kRgb, LossTerm::kFlow, LossTerm::kCycle3d, LossTerm::kFeatureRender}) {
       for (int r = 0; r < batch.num_rays(); ++r) {
         const std::string what = std::string(LossTermName(term)) + " ray " + std::to_string(r) +
-                                 (delta ? " (delta)" : "");
+                                 (delta ? " (delta)" : "") +
+                                 (v.embedding_only ? " (embedding only)" : "");
         const std::vector<double*> params = batch.TermParameterBlocks(r, term);
         const auto a = EvaluateCost(*batch.MakeCostFunction(r, term), params);
         const auto b = EvaluateCost(*MakeReferenceCostFunction(batch, r, term), params);

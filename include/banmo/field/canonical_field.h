@@ -210,13 +210,14 @@ class CanonicalField {
                            const Eigen::Matrix3Xd& c, const std::vector<int>& group_begin,
                            Eigen::MatrixXd* d_sdf_params, Eigen::Matrix3Xd* d_x = nullptr) const;
 
-  // Batched embedding; with input_jacobians also fills dpsi_dx.
+  // Batched embedding; with input_jacobians also fills dpsi_dx (and the
+  // encoding's dpe_dx, which BackwardEmbeddingBatch's d_x needs).
   void ForwardEmbeddingBatch(const double* params, EmbeddingBatch* batch,
                              bool input_jacobians) const;
 
   // Per-group gradient wrt the embedding parameters of sum_j d_psi_j . psi_j
-  // (d_psi: 16 x n). d_params: P_emb x G (may be null); d_x (may be null):
-  // 3 x n.
+  // (d_psi: 16 x n). d_params: P_emb x G (may be null); d_x (may be null;
+  // needs ForwardEmbeddingBatch with input_jacobians): 3 x n.
   void BackwardEmbeddingBatch(const double* params, const EmbeddingBatch& batch,
                               const Eigen::MatrixXd& d_psi, const std::vector<int>& group_begin,
                               Eigen::MatrixXd* d_params, Eigen::Matrix3Xd* d_x = nullptr) const;

@@ -199,6 +199,7 @@ class RayCompositeFunctor {
       T rendered[E];
       for (int k = 0; k < E; ++k) rendered[k] = T(0);
       for (int i = 0; i < n; ++i) {
+        if (!WarpsSample(tau[i])) continue;  // weight below kMinWarpTau: left out
         for (int k = 0; k < E; ++k) rendered[k] += tau[i] * u[locals_.embedding + E * i + k];
       }
       FeatureRenderLoss(ray_.feature, weights_[LossTerm::kFeatureRender])(rendered, residual + row);
@@ -208,8 +209,9 @@ class RayCompositeFunctor {
   }
 
   // The rendered-embedding rows' derivatives wrt the embedding inputs, in
-  // closed form: rendered = sum_i tau_i psi_i, so d r / d psi_i = tau_i
-  // dFeatureRenderLoss/d rendered (one 16 x 16 Jet evaluation). The
+  // closed form: rendered = sum_i tau_i psi_i (over tau_i >= kMinWarpTau, as
+  // operator()), so d r / d psi_i = tau_i dFeatureRenderLoss/d rendered (one
+  // 16 x 16 Jet evaluation), and 0 at the samples left out. The
   // embedding inputs enter no other term, so the Jets of operator() need
   // not carry these 16 N directions (ChunkedJacobian's num_seeded); the
   // full-Jet reference (ray_reference.cc) checks the two agree. jacobian:
@@ -228,13 +230,16 @@ class RayCompositeFunctor {
     J rendered[E], residual[E];
     for (int k = 0; k < E; ++k) {
       double e = 0.0;
-      for (int i = 0; i < n; ++i) e += tau[i] * u[locals_.embedding + E * i + k];
+      for (int i = 0; i < n; ++i) {
+        if (WarpsSample(tau[i])) e += tau[i] * u[locals_.embedding + E * i + k];
+      }
       rendered[k] = J(e, k);
     }
     FeatureRenderLoss(ray_.feature, weights_[LossTerm::kFeatureRender])(rendered, residual);
     for (int i = 0; i < n; ++i) {
+      const double t = WarpsSample(tau[i]) ? tau[i] : 0.0;
       for (int j = 0; j < E; ++j) {
-        for (int k = 0; k < E; ++k) jacobian(j, E * i + k) = tau[i] * residual[j].v[k];
+        for (int k = 0; k < E; ++k) jacobian(j, E * i + k) = t * residual[j].v[k];
       }
     }
     if (residual_values != nullptr) {
