@@ -552,7 +552,7 @@ FrameMatches MatchFrameFeatures(const Eigen::MatrixXd& embedding, const Frame& f
                                 std::uint32_t seed) {
   CHECK_EQ(embedding.rows(), kFeatureDim);
   FrameMatches matches;
-  if (frame.features.empty()) return matches;
+  if (frame.features.empty() || embedding.cols() == 0) return matches;
   std::vector<Eigen::Vector2i> object;
   for (int y = 0; y < frame.mask.rows; ++y) {
     const unsigned char* row = frame.mask.ptr<unsigned char>(y);
@@ -811,6 +811,12 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
     mesh = ExtractCanonicalMesh(*model, options);
   } catch (const InputError& e) {
     report.reason = std::string("no surface (") + e.what() + ")";
+    return report;
+  }
+  if (mesh.NumVertices() == 0) {
+    // A density that fits the masks without an SDF zero crossing (very
+    // rough root poses): nothing to register.
+    report.reason = "no surface (the canonical SDF has no zero crossing in the bounds)";
     return report;
   }
   const RegistrationProxy proxy =

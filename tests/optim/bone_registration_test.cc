@@ -681,6 +681,9 @@ TEST(BoneRegistration, MeanFeaturesAndMatchesOnARenderedPlane) {
   }
   // At most `count` pixels.
   EXPECT_EQ(MatchFrameFeatures(psi, data.videos[0].frames[0], 10, 2).vertex.size(), 10u);
+  // No surface vertices: no matches.
+  EXPECT_TRUE(MatchFrameFeatures(Eigen::MatrixXd(kFeatureDim, 0), data.videos[0].frames[1], 10, 2)
+                  .vertex.empty());
 }
 
 TEST(BoneRegistration, SaysWhyNothingWasRegistered) {
@@ -701,6 +704,16 @@ TEST(BoneRegistration, SaysWhyNothingWasRegistered) {
   const BoneRegistrationReport b = RegisterBoneMotion(&articulated, data, box, {}, 1);
   EXPECT_FALSE(b.registered);
   EXPECT_NE(b.Describe().find("no frame has pixel features"), std::string::npos) << b.Describe();
+  // Features, but no surface in the bounds (the initial sphere is around
+  // the origin): the stability suite's 90-deg root noise reached the
+  // registration with an empty canonical mesh and indexed vertex -1.
+  Frame& f = data.videos[0].frames[0];
+  f.mask = cv::Mat(8, 8, CV_8UC1, cv::Scalar(kMaskObject));
+  f.features = cv::Mat(8, 8, CV_16FC(kFeatureDim), cv::Scalar::all(0));
+  const Eigen::AlignedBox3d far(Eigen::Vector3d::Constant(5), Eigen::Vector3d::Constant(6));
+  const BoneRegistrationReport c = RegisterBoneMotion(&articulated, data, far, {}, 1);
+  EXPECT_FALSE(c.registered);
+  EXPECT_NE(c.Describe().find("no surface"), std::string::npos) << c.Describe();
 }
 
 }  // namespace
