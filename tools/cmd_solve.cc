@@ -1,7 +1,6 @@
 // banmo solve: reconstruct an animatable model from a dataset by running the
 // stages of a config (docs/solver.md, docs/config.md).
 #include <CLI/CLI.hpp>
-#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -12,8 +11,7 @@
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/load_options.h"
-#include "banmo/optim/root_init_registration.h"
-#include "banmo/optim/root_init_smoothing.h"
+#include "banmo/optim/root_init.h"
 #include "banmo/optim/root_pose_error.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
@@ -103,77 +101,9 @@ int RunSolve(int argc, char** argv) {
   Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
   std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
               dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
-  // With ground truth (synthetic data): the initial poses' error, after
-  // each step that changes them.
-  auto print_pose_error = [&dataset](const char* label) {
-    if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(dataset)) {
-      std::printf(
-          "banmo solve: %s root poses: rotation error %.2f deg mean, %.2f deg p90 against the "
-          "ground truth\n",
-          label, e->mean_deg, e->p90_deg);
-    }
-  };
-  print_pose_error("initial");
   // Registration and smoothing are deterministic, so a resumed solve gets the
   // same tracks (and the same object centre and scene scale from them).
-  if (config.model.root_init_registration.enabled) {
-    Timer registration_timer;
-    const RootRegistration r = RegisterRootPoseInit(config.model.root_init_registration, &dataset);
-    if (!r.registered) {
-      std::printf(
-          "banmo solve: root-pose registration (model.root_init_registration): not possible (%s); "
-          "initial root poses left as they are\n",
-          r.reason.c_str());
-    } else {
-      std::printf(
-          "banmo solve: root-pose registration (model.root_init_registration): %d frame(s) "
-          "registered from %d reference features (%.1f observations per frame), factorisation "
-          "%.2f px RMS, bundle adjustment %.2f px median (cost %.4g, depth reversal %.4g; %d "
-          "iterations), %.1f s\n",
-          r.frames, r.references, r.observations_per_frame, r.affine_rms_px, r.median_residual_px,
-          r.cost, r.mirror_cost, r.iterations, registration_timer.Seconds());
-      if (r.ambiguous) {
-        std::printf(
-            "banmo solve: warning: the registration's depth reversal fits almost as well (cost "
-            "ratio %.2f > 0.8): the object may deform too much for a rigid registration\n",
-            r.cost / r.mirror_cost);
-      }
-      for (size_t v = 0; v < r.videos.size(); ++v) {
-        const VideoRegistration& c = r.videos[v];
-        std::printf(
-            "banmo solve: root-pose registration, video %zu: noise %.2f deg initial, %.2f "
-            "registered: %s\n",
-            v, c.initial_noise_deg, c.registered_noise_deg,
-            c.replaced ? "initial poses replaced" : "initial poses kept");
-      }
-      if (r.filled > 0) {
-        std::printf("banmo solve: root-pose registration: %d frame(s) given a neighbour's pose\n",
-                    r.filled);
-      }
-      const bool replaced = std::any_of(r.videos.begin(), r.videos.end(),
-                                        [](const VideoRegistration& c) { return c.replaced; });
-      if (replaced) print_pose_error("registered");
-    }
-  }
-  if (config.model.root_init_smoothing.enabled) {
-    const std::vector<RootTrackSmoothing> smoothing =
-        SmoothRootPoseInit(config.model.root_init_smoothing, &dataset);
-    for (size_t v = 0; v < smoothing.size(); ++v) {
-      const RootTrackSmoothing& s = smoothing[v];
-      if (!s.smoothed) {
-        std::printf(
-            "banmo solve: root-pose smoothing (model.root_init_smoothing), video %zu: already "
-            "smooth (largest second difference %.2f deg <= acceleration_deg), left as it is\n",
-            v, s.max_acceleration_deg);
-        continue;
-      }
-      std::printf(
-          "banmo solve: root-pose smoothing (model.root_init_smoothing), video %zu: noise %.2f "
-          "deg estimated, poses turned by %.2f deg mean, %.2f max (%d iterations)\n",
-          v, s.noise_deg, s.mean_change_deg, s.max_change_deg, s.iterations);
-    }
-    print_pose_error("smoothed");
-  }
+  PrepareRootPoseInit(config.model, &dataset, "banmo solve");
   // Inputs are valid: only now is anything written.
   MakeDirectories(out_dir);
   WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));

@@ -20,6 +20,7 @@
 #include "banmo/io/dataset.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/load_options.h"
+#include "banmo/optim/root_init.h"
 #include "banmo/optim/root_pose_error.h"
 #include "banmo/optim/solver.h"
 #include "banmo/util/atomic_file.h"
@@ -117,7 +118,11 @@ int Run(int argc, char** argv) {
   SolverConfig config = ParseConfigWithOverrides(text.str(), o.overrides, o.config_path);
   if (o.threads >= 0) config.threads = o.threads;
 
-  const Dataset dataset = LoadDataset(o.data_dir, DatasetLoadOptions(config));
+  Dataset dataset = LoadDataset(o.data_dir, DatasetLoadOptions(config));
+  // The root poses `banmo solve` would start from (registered and smoothed
+  // as the config says), so the stability cases with rough poses measure
+  // what a user's solve does.
+  PrepareRootPoseInit(config.model, &dataset, "banmo_trace");
   std::vector<EvalFrame> eval_frames;
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
     const Video& video = dataset.videos[v];

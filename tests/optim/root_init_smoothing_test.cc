@@ -5,7 +5,10 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
+
+#include "banmo/optim/root_init.h"
 
 namespace banmo {
 namespace {
@@ -159,6 +162,45 @@ TEST(RootInitSmoothing, EachVideoOfADatasetIsSmoothedOnItsOwn) {
   std::vector<Pose> smoothed;
   for (const Frame& f : d.videos[1].frames) smoothed.push_back(f.root_pose_init);
   EXPECT_LT(MeanErrorDeg(smoothed, truth), 0.5 * MeanErrorDeg(noisy, truth));
+}
+
+// PrepareRootPoseInit (optim/root_init.h), what `banmo solve` and
+// banmo_trace run before a solve: the same smoothing, a line per step with
+// the prefix, nothing printed without one, and nothing done when disabled.
+TEST(RootInitSmoothing, PrepareRootPoseInitSmoothsAsTheSolveDoes) {
+  const std::vector<Pose> truth = SmoothTrack(16);
+  const std::vector<Pose> noisy = Noisy(truth, 30.0, 7);
+  Dataset d;
+  d.videos.resize(1);
+  for (int t = 0; t < 16; ++t) {
+    Frame f;
+    f.index = t;
+    f.root_pose_init = noisy[t];
+    d.videos[0].frames.push_back(f);
+  }
+  Dataset direct = d, prepared = d, quiet = d, off = d;
+  SmoothRootPoseInit(RootSmoothingOptions(), &direct);
+  ModelOptions options;
+  options.root_init_registration.enabled = false;
+  options.root_init_smoothing.enabled = true;
+  testing::internal::CaptureStdout();
+  PrepareRootPoseInit(options, &prepared, "tool");
+  const std::string printed = testing::internal::GetCapturedStdout();
+  EXPECT_NE(printed.find("tool: root-pose smoothing (model.root_init_smoothing), video 0: noise"),
+            std::string::npos)
+      << printed;
+  testing::internal::CaptureStdout();
+  PrepareRootPoseInit(options, &quiet, "");
+  EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
+  options.root_init_smoothing.enabled = false;
+  PrepareRootPoseInit(options, &off, "");
+  for (int t = 0; t < 16; ++t) {
+    EXPECT_EQ(prepared.videos[0].frames[t].root_pose_init,
+              direct.videos[0].frames[t].root_pose_init);
+    EXPECT_EQ(quiet.videos[0].frames[t].root_pose_init, direct.videos[0].frames[t].root_pose_init);
+    EXPECT_EQ(off.videos[0].frames[t].root_pose_init, noisy[t]);
+  }
+  EXPECT_GT(MeanErrorDeg(noisy, truth), 5.0);  // the smoothing had work to do
 }
 
 }  // namespace

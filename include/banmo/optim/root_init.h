@@ -1,0 +1,25 @@
+// The initial root poses' preparation before a solve, shared by `banmo
+// solve` and the solver harness (banmo_trace), so both solve from the same
+// poses: model.root_init_registration (optim/root_init_registration.h),
+// then model.root_init_smoothing (optim/root_init_smoothing.h), each when
+// enabled (docs/solver.md, "Videos without poses", "Smoothing rough
+// initial poses").
+#pragma once
+
+#include <string>
+
+#include "banmo/io/dataset.h"
+#include "banmo/model/model.h"
+
+namespace banmo {
+
+// Registers and smooths `dataset`'s root_pose_init in place as `options`
+// say. Deterministic, so a resumed solve gets the same poses. With a
+// non-empty `log_prefix`, one line per step on stdout ("<log_prefix>:
+// root-pose registration ..."), and where the dataset has ground truth,
+// the initial poses' rotation error before and after each step that
+// changes them.
+void PrepareRootPoseInit(const ModelOptions& options, Dataset* dataset,
+                         const std::string& log_prefix);
+
+}  // namespace banmo
