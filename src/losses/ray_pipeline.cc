@@ -264,32 +264,27 @@ void RayPipeline::EvaluateFields() {
                        rays[r]->samples.deltas.data(), model.options().density, ev.tau.data());
     }
   });
-  // The rendered embedding reads the same samples (RayCompositeFunctor).
+  // The samples that count (tau_i >= kMinWarpTau) of the rays with the rgb
+  // term are the colour MLP's columns, and those of the rays with the
+  // rendered embedding its samples (RayCompositeFunctor reads no other).
+  std::vector<int> columns;
   for (int r = 0; r < num_rays; ++r) {
     RayScratch& s = scratch[r];
     s.emb_samples.clear();
-    if (rays[r]->HasTerm(LossTerm::kFeatureRender, weights)) {
-      const std::vector<double>& tau = (*out)[r].tau;
-      for (int i = 0; i < s.num_samples; ++i) {
-        if (WarpsSample(tau[i])) s.emb_samples.push_back(i);
-      }
+    const bool rgb = any_color && rays[r]->HasTerm(LossTerm::kRgb, weights);
+    const bool emb = rays[r]->HasTerm(LossTerm::kFeatureRender, weights);
+    const std::vector<double>& tau = (*out)[r].tau;
+    for (int i = 0; i < s.num_samples && (rgb || emb); ++i) {
+      if (!WarpsSample(tau[i])) continue;
+      if (rgb) columns.push_back(s.field_offset + i);
+      if (emb) s.emb_samples.push_back(i);
     }
     s.num_emb = static_cast<int>(s.emb_samples.size());
     s.emb_offset = emb_groups[r];
     emb_groups[r + 1] = emb_groups[r] + s.num_emb;
   }
   total_emb = emb_groups[num_rays];
-  if (jacobians || any_color) {
-    std::vector<int> columns;
-    for (int r = 0; r < num_rays && any_color; ++r) {
-      if (!rays[r]->HasTerm(LossTerm::kRgb, weights)) continue;
-      const std::vector<double>& tau = (*out)[r].tau;
-      for (int i = 0; i < scratch[r].num_samples; ++i) {
-        if (WarpsSample(tau[i])) columns.push_back(scratch[r].field_offset + i);
-      }
-    }
-    field.ForwardColorBatch(color_params, columns, &fb, jacobians);
-  }
+  if (jacobians || any_color) field.ForwardColorBatch(color_params, columns, &fb, jacobians);
   if (total_emb > 0) {
     sb.x.resize(3, total_emb);
     for (int r = 0; r < num_rays; ++r) {
