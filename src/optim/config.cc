@@ -124,6 +124,7 @@ void VisitFields(V& v, ScheduleConfig& o) {
   v("bone_sites", o.bone_sites);
   v("freeze_after_reinit", o.freeze_after_reinit);
   v("bounds_refresh_every", o.bounds_refresh_every);
+  v("bounds_refresh_max_mask_loss", o.bounds_refresh_max_mask_loss);
   v("anneal_end_fraction", o.anneal_end_fraction);
   v("delta_skinning_from", o.delta_skinning_from);
   v("root_free_from", o.root_free_from);
@@ -745,6 +746,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
            "needs schedule.bone_reinit_at (the freeze follows each re-initialisation)");
   }
   c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
+  c.NonNegative(h + ".bounds_refresh_max_mask_loss", s.schedule.bounds_refresh_max_mask_loss);
   c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
   c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
   c.Fraction(h + ".root_free_from", s.schedule.root_free_from);

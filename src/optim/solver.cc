@@ -16,6 +16,7 @@
 #include "banmo/losses/regularizers.h"
 #include "banmo/optim/auto_size.h"
 #include "banmo/optim/bone_registration.h"
+#include "banmo/optim/bounds_refresh.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/pose_solve.h"
 #include "banmo/optim/ray_sampler.h"
@@ -361,7 +362,7 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
   }
   if (stage.schedule.bounds_refresh_every > 0 && batch_index > 0 &&
       batch_index % stage.schedule.bounds_refresh_every == 0) {
-    RefreshBounds();
+    RefreshBounds(batch_index, stage, c, result);
   }
   if (fraction >= stage.schedule.neus_from && model.options().density != DensityModel::kNeus) {
     model.SetDensity(DensityModel::kNeus);
@@ -498,7 +499,26 @@ void Solver::Grow(int batch_index, const StageRun& run, StageProblem* sp, RunCon
 
 namespace banmo {
 
-void Solver::RefreshBounds() { bounds_ = CanonicalBoundsFromSurface(*model_, bounds_); }
+void Solver::RefreshBounds(int batch_index, const StageConfig& stage, RunContext* c,
+                           SolveResult* result) {
+  const BoundsRefreshResult r = RefreshCanonicalBounds(*model_, dataset_, bounds_,
+                                                       stage.schedule.bounds_refresh_max_mask_loss);
+  if (r.kept > 0.0) {
+    ++result->bounds_refreshes_held;
+    if (!c->options.quiet) {
+      const Eigen::Vector3d from = bounds_.sizes(), surface = r.surface.sizes(), to = r.box.sizes();
+      std::printf(
+          "[%s] bounds refresh at batch %d held: the surface's box (%.2f x %.2f x %.2f) meets "
+          "%.1f %% of the masks' object pixels against %.1f %% of the box before (%.2f x %.2f x "
+          "%.2f); new box %.0f %% of the way back (%.2f x %.2f x %.2f, %.1f %%)\n",
+          stage.name.c_str(), batch_index, surface[0], surface[1], surface[2],
+          100.0 * r.coverage_surface, 100.0 * r.coverage_current, from[0], from[1], from[2],
+          100.0 * r.kept, to[0], to[1], to[2], 100.0 * r.coverage);
+      std::fflush(stdout);
+    }
+  }
+  bounds_ = r.box;
+}
 
 void Solver::ReinitializeBones(bool keep_motion, BoneSites sites, SolverState* state) {
   Model& model = *model_;

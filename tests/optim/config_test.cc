@@ -418,6 +418,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        [&](SolverConfig* c) { S(c).schedule.freeze_after_reinit = 0.05; }},
       {"stages[1].schedule.bounds_refresh_every",
        [&](SolverConfig* c) { S(c).schedule.bounds_refresh_every = -1; }},
+      {"stages[1].schedule.bounds_refresh_max_mask_loss",
+       [&](SolverConfig* c) { S(c).schedule.bounds_refresh_max_mask_loss = -0.1; }},
       {"stages[1].schedule.anneal_end_fraction",
        [&](SolverConfig* c) { S(c).schedule.anneal_end_fraction = 2; }},
       {"stages[1].schedule.delta_skinning_from",
@@ -801,6 +803,7 @@ SolverConfig EveryFieldChanged() {
     s.schedule.bone_sites = BoneSites::kSkeleton;
     s.schedule.freeze_after_reinit = 0.03;
     s.schedule.bounds_refresh_every = 25;
+    s.schedule.bounds_refresh_max_mask_loss = 0.125;
     s.schedule.anneal_end_fraction = 0.4;
     s.schedule.delta_skinning_from = i == 0 ? 1.5 : 0.6;  // >= 1: off in this stage
     s.schedule.root_free_from = 0.15;                     // before pose_solve.at[0]
@@ -959,6 +962,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.schedule.bone_sites, t.schedule.bone_sites);
     EXPECT_EQ(s.schedule.freeze_after_reinit, t.schedule.freeze_after_reinit);
     EXPECT_EQ(s.schedule.bounds_refresh_every, t.schedule.bounds_refresh_every);
+    EXPECT_EQ(s.schedule.bounds_refresh_max_mask_loss, t.schedule.bounds_refresh_max_mask_loss);
     EXPECT_EQ(s.schedule.anneal_end_fraction, t.schedule.anneal_end_fraction);
     EXPECT_EQ(s.pose_solve.at, t.pose_solve.at);
     EXPECT_EQ(s.pose_solve.rays, t.pose_solve.rays);

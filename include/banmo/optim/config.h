@@ -182,7 +182,13 @@ struct ScheduleConfig {
   // motion before the density spreads to explain it (the official BANMo
   // code freezes them for 1 % of training). 0 = off.
   double freeze_after_reinit = 0.0;
-  int bounds_refresh_every = 0;      // batches between canonical-bounds refreshes (0 = never)
+  int bounds_refresh_every = 0;  // batches between canonical-bounds refreshes (0 = never)
+  // The largest fraction of the masks' object pixels a refresh may leave
+  // outside the box their rays meet (optim/bounds_refresh.h): a box that
+  // loses more stays nearer the old one. A model that breaks up for a while
+  // loses most (the box shrinks onto one fragment); a shape that forms loses
+  // none (docs/solver.md, "Canonical bounds"). >= 1: no check.
+  double bounds_refresh_max_mask_loss = 0.05;
   double anneal_end_fraction = 0.0;  // coarse-to-fine PE annealing reaches all bands here (0 = off)
   double delta_skinning_from = 1.0;  // fraction from which delta skinning is free (>= 1: never)
   // Fraction of the stage from which the root corrections are free; before

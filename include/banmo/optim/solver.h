@@ -102,6 +102,9 @@ struct SolveResult {
   std::vector<AutoSizeEvent> auto_size;
   // Per-frame pose solves (stage pose_solve.at), in order.
   std::vector<PoseSolveReport> pose_solves;
+  // Bounds refreshes whose surface box lost too much of the masks
+  // (optim/bounds_refresh.h): the box was kept nearer the old one.
+  int bounds_refreshes_held = 0;
   bool interrupted = false;  // stopped by SIGINT or stop_after_batches (checkpoint written)
   bool stopped = false;      // ... by stop_after_batches (as asked, not SIGINT)
 };
@@ -153,8 +156,10 @@ class Solver {
   // Writes out_dir/checkpoint (nothing without out_dir).
   void Save(int stage, int batch_index, RunContext* c);
   // Canonical bounds from a coarse extraction of the current surface (10 %
-  // margin, within [-2, 2]^3); unchanged if the level set is empty.
-  void RefreshBounds();
+  // margin, within [-2, 2]^3), checked against the masks
+  // (optim/bounds_refresh.h, schedule.bounds_refresh_max_mask_loss);
+  // unchanged if the level set is empty.
+  void RefreshBounds(int batch_index, const StageConfig& stage, RunContext* c, SolveResult* result);
   // Rest bones re-initialised on the current surface (k-means of a coarse
   // extraction), bone transforms reset to the identity (keep_motion: set to
   // carry each frame's old motion, TransferBoneMotion), MLP_Delta's output
