@@ -105,7 +105,7 @@ TEST(SolverConfig, EveryProblemFileLoadsAndChecks) {
     const std::string yaml = SolverConfigToYaml(c);
     EXPECT_EQ(SolverConfigToYaml(ParseSolverConfig(yaml, "resolved")), yaml);
   }
-  for (const char* required : {"default", "quadruped", "bird", "hand", "fox", "rigid", "tiny"}) {
+  for (const char* required : {"default", "fox", "fox_noisy_poses", "rigid", "tiny"}) {
     EXPECT_TRUE(names.count(required)) << "problems/" << required << ".yaml missing";
   }
 }
