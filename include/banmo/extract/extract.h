@@ -61,7 +61,7 @@ FrameSelection ParseFrameSelection(const std::string& text, const Model& model,
 // trained models measured that the zero level set separates from the body
 // (a wing, legs) are 0.2-14 % of the largest component's faces, and keeping
 // every component above 0.1 % scored better on the Fox than 1 % or the
-// largest alone; what it drops are specks of a few faces (benchmarks/README.md,
+// largest alone; what it drops are specks of a few faces (benchmarks/log/2026-11.md,
 // "Stage 3 and detached parts").
 inline constexpr double kDefaultMinComponentFraction = 0.001;
 
@@ -169,7 +169,7 @@ ExtractionSummary WriteExtraction(
 // (resolution cells on the longest axis of `bounds`, largest component), for
 // the solver's canonical-bounds refresh. Returns an empty box if the level set
 // does not cross the grid. (Keeping the smaller components here too was
-// measured and not kept: benchmarks/README.md, "Stage 3 and detached
+// measured and not kept: benchmarks/log/2026-11.md, "Stage 3 and detached
 // parts".)
 Eigen::AlignedBox3d SurfaceBounds(const Model& model, const Eigen::AlignedBox3d& bounds,
                                   int resolution = 48);
