@@ -154,17 +154,10 @@ void CheckRenderArgs(RenderArgs* a) {
 // Sampling as the model was trained (the last stage of its solver config),
 // unless --samples / --importance say otherwise.
 void SetSampling(const Model& model, const RenderArgs& a, FrameRenderOptions* frame) {
-  bool trained_importance = false, trained_min_sdf_sample = false;
-  if (model.training_sampling()) {
-    const TrainingSampling& trained = *model.training_sampling();
-    frame->samples_per_ray = trained.samples_per_ray;
-    frame->near_far_margin = trained.near_far_margin;
-    frame->clip_to_box = trained.clip_to_box;
-    frame->clip_margin = trained.clip_margin;
-    trained_importance = trained.importance_depth;
-    frame->importance_samples = trained.importance_samples;
-    trained_min_sdf_sample = trained.min_sdf_sample;
-  }
+  SetTrainedSampling(model, frame);
+  const bool trained_importance = frame->importance;
+  const bool trained_min_sdf_sample =
+      model.training_sampling() && model.training_sampling()->min_sdf_sample;
   if (a.samples > 0) frame->samples_per_ray = a.samples;
   if (a.importance_samples >= 0) frame->importance_samples = a.importance_samples;
   frame->importance = AutoOnOff(a.importance, trained_importance);

@@ -31,7 +31,7 @@ int RunSolve(int argc, char** argv) {
       "banmo solve"};
   std::string data_dir, config_path, out_dir, retarget_dir;
   bool resume = false, overwrite = false, no_extract = false, no_eval = false, quiet = false;
-  int seed = -1, threads = -1, resolution = 128, stop_after = -1;
+  int seed = -1, threads = -1, resolution = 128, stop_after = -1, holdout_every = 0;
   app.add_option("--data", data_dir, "Dataset folder (docs/dataset.md)")->required();
   app.add_option("--config", config_path, "Stage config, e.g. problems/default.yaml")->required();
   app.add_option("--out", out_dir, "Output folder (config.yaml, checkpoint/, meshes/, eval/)")
@@ -50,6 +50,12 @@ int RunSolve(int argc, char** argv) {
                  "Stop once this many batches have run in total, counting those before a "
                  "--resume (checkpoint written, exit status 0; continue with --resume): a long "
                  "solve in pieces");
+  app.add_option("--holdout-every", holdout_every,
+                 "Leave every N-th frame of each video (frames N/2, N/2 + N, ...) out of every "
+                 "loss and score it at the end: mask IoU and PSNR of its rendering with "
+                 "transforms interpolated from its neighbours (OUT/holdout/summary.json; 0 = "
+                 "none)")
+      ->capture_default_str();
   app.add_flag("--no-extract", no_extract, "Skip mesh extraction at the end");
   app.add_flag("--no-eval", no_eval, "Skip evaluation against ground truth at the end");
   app.add_flag("--quiet", quiet, "No progress lines");
@@ -97,8 +103,15 @@ int RunSolve(int argc, char** argv) {
                     ": folder exists and is not empty (use --overwrite or --resume)");
   }
 
+  holdout_every =
+      ResolveHoldoutEvery(out_dir, resume, app.count("--holdout-every") > 0, holdout_every);
   Timer timer;
   Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
+  const HoldoutPlan holdout = MarkHeldOutFrames(holdout_every, &dataset);
+  if (holdout.every > 0) {
+    std::printf("banmo solve: %zu frame(s) held out (1 in %d of each video; --holdout-every)\n",
+                holdout.frames.size(), holdout.every);
+  }
   std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
               dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
   // Registration and smoothing are deterministic, so a resumed solve gets the
@@ -107,6 +120,11 @@ int RunSolve(int argc, char** argv) {
   // Inputs are valid: only now is anything written.
   MakeDirectories(out_dir);
   WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));
+  if (holdout.every > 0) {
+    WriteFileAtomic(out_dir + "/holdout.yaml", "every: " + std::to_string(holdout.every) + "\n");
+  } else if (!resume) {
+    std::filesystem::remove(out_dir + "/holdout.yaml", ec);  // an earlier solve's (--overwrite)
+  }
 
   std::unique_ptr<Model> source;
   ModelOptions model_options = config.model;
@@ -188,9 +206,11 @@ int RunSolve(int argc, char** argv) {
           body->mean_deg, body->p90_deg, body->max_deg);
     }
   }
+  if (holdout.every > 0) InterpolateHeldOutFramesInCheckpoint(holdout, out_dir, &solver.model());
   if (!no_extract) {
     WriteSolveOutputs(solver.model(), dataset, out_dir, resolution, !no_eval);
   }
+  if (holdout.every > 0) WriteHoldoutScore(solver.model(), dataset, holdout, out_dir);
   return 0;
 }
 

@@ -49,4 +49,14 @@ double RotationAngleBetween(const double* pose_a, const double* pose_b) {
   return qa.angularDistance(qb);
 }
 
+Pose PoseInterpolate(const Pose& a, const Pose& b, double w) {
+  const Eigen::Quaterniond qa = Eigen::Quaterniond(a[0], a[1], a[2], a[3]).normalized();
+  const Eigen::Quaterniond qb = Eigen::Quaterniond(b[0], b[1], b[2], b[3]).normalized();
+  // Eigen's slerp takes the shorter arc (it flips qb when qa . qb < 0).
+  const Eigen::Quaterniond q = qa.slerp(w, qb);
+  Pose out;
+  out << q.w(), q.x(), q.y(), q.z(), (1.0 - w) * a.tail<3>() + w * b.tail<3>();
+  return out;
+}
+
 }  // namespace banmo

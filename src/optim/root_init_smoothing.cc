@@ -134,10 +134,12 @@ double RootTrackNoiseDeg(const std::vector<Pose>& poses) {
   return TrackNoise(q, &max_accel) / kRadPerDeg;
 }
 
-RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vector<Pose>* poses) {
+RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vector<Pose>* poses,
+                                   const std::vector<bool>& observed) {
   CHECK(options.acceleration_deg > 0 && options.robust_sigmas > 0);
   RootTrackSmoothing out;
   const int n = static_cast<int>(poses->size());
+  CHECK(observed.empty() || static_cast<int>(observed.size()) == n);
   if (n < 3) return out;
   std::vector<Eigen::Vector4d> q0(n);
   for (int t = 0; t < n; ++t) q0[t] = UnitQuaternion((*poses)[t]);
@@ -170,6 +172,10 @@ RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vec
   }
   ceres::Problem problem;
   for (int t = 0; t < n; ++t) {
+    if (!observed.empty() && !observed[t]) {
+      problem.AddParameterBlock(d[t].data(), 3);  // placed by the prior alone
+      continue;
+    }
     problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<TrackData, 3, 3>(new TrackData(1.0 / sigma)),
         new ceres::CauchyLoss(options.robust_sigmas), d[t].data());
@@ -215,8 +221,12 @@ std::vector<RootTrackSmoothing> SmoothRootPoseInit(const RootSmoothingOptions& o
   std::vector<RootTrackSmoothing> out;
   for (Video& video : dataset->videos) {
     std::vector<Pose> track;
-    for (const Frame& f : video.frames) track.push_back(f.root_pose_init);
-    out.push_back(SmoothRootTrack(options, &track));
+    std::vector<bool> observed;
+    for (const Frame& f : video.frames) {
+      track.push_back(f.root_pose_init);
+      observed.push_back(!f.held_out);
+    }
+    out.push_back(SmoothRootTrack(options, &track, observed));
     for (size_t t = 0; t < video.frames.size(); ++t) video.frames[t].root_pose_init = track[t];
   }
   return out;

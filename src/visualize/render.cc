@@ -249,6 +249,7 @@ FrameErrors SummarizeErrors(const ErrorMaps& errors, const RenderedFrame& render
                             const ObservedFrame& observed) {
   FrameErrors s;
   double sum[3] = {0, 0, 0};
+  double squared = 0.0;  // sum of squared colour differences over object pixels
   int inter = 0, uni = 0;
   for (int y = 0; y < errors.rgb.rows; ++y) {
     for (int x = 0; x < errors.rgb.cols; ++x) {
@@ -261,6 +262,10 @@ FrameErrors SummarizeErrors(const ErrorMaps& errors, const RenderedFrame& render
         ++*counts[k];
       }
       const double m = observed.mask.at<double>(y, x);
+      if (m >= 0.5) {
+        const cv::Vec3d dc = rendered.rgb.at<cv::Vec3d>(y, x) - observed.rgb.at<cv::Vec3d>(y, x);
+        squared += dc.dot(dc);
+      }
       if (m < 0.0) continue;
       const bool a = rendered.opacity.at<double>(y, x) >= 0.5, b = m >= 0.5;
       inter += a && b;
@@ -271,7 +276,21 @@ FrameErrors SummarizeErrors(const ErrorMaps& errors, const RenderedFrame& render
   s.mask = s.mask_pixels > 0 ? sum[1] / s.mask_pixels : kNaN;
   s.flow = s.flow_pixels > 0 ? sum[2] / s.flow_pixels : kNaN;
   s.mask_iou = uni > 0 ? static_cast<double>(inter) / uni : kNaN;
+  // Colours in [0, 1], so the peak signal is 1; a perfect match gives +inf.
+  s.psnr = s.rgb_pixels > 0 ? -10.0 * std::log10(squared / (3.0 * s.rgb_pixels)) : kNaN;
   return s;
+}
+
+void SetTrainedSampling(const Model& model, FrameRenderOptions* options) {
+  if (!model.training_sampling()) return;
+  const TrainingSampling& trained = *model.training_sampling();
+  options->samples_per_ray = trained.samples_per_ray;
+  options->near_far_margin = trained.near_far_margin;
+  options->clip_to_box = trained.clip_to_box;
+  options->clip_margin = trained.clip_margin;
+  options->importance = trained.importance_depth;
+  options->importance_samples = trained.importance_samples;
+  options->min_sdf_sample = trained.importance_depth && trained.min_sdf_sample;
 }
 
 void CheckDatasetMatchesModel(const Dataset& dataset, const Model& model,

@@ -169,7 +169,7 @@ SequenceSummary RenderSequence(
   MakeDirectories(out_dir + "/errors");
   std::ostringstream csv;
   csv << "video,frame,partner_frame,rgb_error,mask_error,mask_iou,flow_epe,rgb_pixels,"
-         "mask_pixels,flow_pixels,volume_seconds,total_seconds\n";
+         "mask_pixels,flow_pixels,volume_seconds,total_seconds,psnr\n";
   std::vector<cv::Mat> video_frames;
   int done = 0;
   for (const auto& [v, t] : frames) {
@@ -204,7 +204,8 @@ SequenceSummary RenderSequence(
     csv << v << "," << t << "," << report.partner_frame << "," << FormatDouble(e.rgb) << ","
         << FormatDouble(e.mask) << "," << FormatDouble(e.mask_iou) << "," << FormatDouble(e.flow)
         << "," << e.rgb_pixels << "," << e.mask_pixels << "," << e.flow_pixels << ","
-        << FormatDouble(report.volume_seconds) << "," << FormatDouble(report.total_seconds) << "\n";
+        << FormatDouble(report.volume_seconds) << "," << FormatDouble(report.total_seconds) << ","
+        << FormatDouble(e.psnr) << "\n";
     summary.frames.push_back(report);
     ++done;
     if (progress) progress(report, done, static_cast<int>(frames.size()));

@@ -118,6 +118,41 @@ TEST_F(RenderCli, RendersTheCheckpointOfBanmoSolve) {
   EXPECT_EQ(rows, 3);
 }
 
+// `banmo solve --holdout-every`: the held-out frames are scored at the end
+// (OUT/holdout), the setting is recorded for --resume, and another value
+// with --resume is refused by name.
+TEST_F(RenderCli, SolveScoresHeldOutFrames) {
+  std::ofstream(Path("tiny.yaml")) << kConfig;
+  const std::string out = Path("holdout_solve");
+  const auto solve = RunBanmo("solve --data " + Data() + " --config " + Path("tiny.yaml") +
+                              " --out " + out + " --holdout-every 3 --no-extract --quiet");
+  ASSERT_EQ(solve.exit_code, 0) << solve.out;
+  EXPECT_NE(solve.out.find("4 frame(s) held out (1 in 3"), std::string::npos) << solve.out;
+  EXPECT_NE(solve.out.find("held-out frames (1 in 3, 4 frames): mask IoU"), std::string::npos)
+      << solve.out;
+  std::ifstream json(out + "/holdout/summary.json");
+  const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"mask_iou\": 0."), std::string::npos) << text;
+  EXPECT_NE(text.find("\"psnr\": "), std::string::npos) << text;
+  for (const char* stem :
+       {"video00_frame00001", "video00_frame00004", "video01_frame00001", "video01_frame00004"}) {
+    EXPECT_TRUE(fs::exists(out + "/holdout/frames/" + stem + ".png")) << stem;
+  }
+  EXPECT_TRUE(fs::exists(out + "/holdout.yaml"));
+  const auto again = RunBanmo("solve --data " + Data() + " --config " + Path("tiny.yaml") +
+                              " --out " + out + " --resume --holdout-every 2 --no-extract");
+  EXPECT_EQ(again.exit_code, 2) << again.out;
+  EXPECT_NE(again.out.find("holdout.yaml records the solve's --holdout-every 3"), std::string::npos)
+      << again.out;
+  const auto bad = RunBanmo("solve --data " + Data() + " --config " + Path("tiny.yaml") +
+                            " --out " + Path("holdout_bad") + " --holdout-every 1");
+  EXPECT_EQ(bad.exit_code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("--holdout-every: expected 0 (none) or an integer >= 2, got 1"),
+            std::string::npos)
+      << bad.out;
+  EXPECT_FALSE(fs::exists(Path("holdout_bad")));
+}
+
 TEST_F(RenderCli, DefaultSelectionIsEveryKthFrame) {
   const std::string out = Path("every");
   const auto r = RunBanmo("render --model " + Model() + " --data " + Data() + " --out " + out +

@@ -95,5 +95,9 @@ Pose PoseFromAngleAxis(const Eigen::Vector3d& angle_axis, const Eigen::Vector3d&
 Pose PoseWithOriginAt(const Pose& b_from_a, const Eigen::Vector3d& origin);
 // Geodesic rotation angle between two poses' rotations, in radians.
 double RotationAngleBetween(const double* pose_a, const double* pose_b);
+// The pose a fraction w of the way from a to b (w in [0, 1]): the rotation
+// by spherical linear interpolation on the shorter arc, the translation
+// linearly (w = 0 gives a, w = 1 gives b, to rounding).
+Pose PoseInterpolate(const Pose& a, const Pose& b, double w);
 
 }  // namespace banmo

@@ -45,6 +45,9 @@ struct Frame {
   std::optional<Pose> root_pose_gt;      // camera_from_root ground truth (synthetic)
   std::string gt_mesh_path;              // posed GT mesh (PLY, camera coords); empty if absent
   bool skip = false;                     // empty mask: warned about and skipped
+  // Left out of every loss to be scored afterwards (io/holdout.h); such a
+  // frame is also marked skip, so every consumer of the data passes it by.
+  bool held_out = false;
 
   // The flow field for `gap`, or nullptr if absent.
   const FlowField* FlowForGap(int gap) const;

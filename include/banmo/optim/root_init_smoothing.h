@@ -47,12 +47,15 @@ double RootTrackNoiseDeg(const std::vector<Pose>& poses);
 
 // Smooths the rotations of one track of camera_from_root poses (in frame
 // order) in place; tracks of fewer than 3 poses are left as they are.
-// Translations are unchanged.
-RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vector<Pose>* poses);
+// Translations are unchanged. `observed` (empty: all) says which poses are
+// data: the others have no data term and are placed by the prior alone.
+RootTrackSmoothing SmoothRootTrack(const RootSmoothingOptions& options, std::vector<Pose>* poses,
+                                   const std::vector<bool>& observed = {});
 
 // SmoothRootTrack on each video's root_pose_init (frames in index order,
-// skipped frames included: their poses are data like the others). One
-// result per video.
+// skipped frames included: their poses are data like the others, except
+// held-out frames' (io/holdout.h), which are no observation). One result
+// per video.
 std::vector<RootTrackSmoothing> SmoothRootPoseInit(const RootSmoothingOptions& options,
                                                    Dataset* dataset);
 

@@ -122,10 +122,19 @@ struct FrameErrors {
   double mask = 0.0;      // mean of ErrorMaps::mask
   double flow = 0.0;      // mean endpoint error (NaN if no valid flow)
   double mask_iou = 0.0;  // IoU of {o >= 0.5} and {s_hat = 1} over known pixels (NaN if both empty)
+  // PSNR (dB) of the rendered colour on the observed object pixels, colours
+  // in [0, 1]: -10 log10(mean squared difference over pixels and channels);
+  // NaN without object pixels.
+  double psnr = 0.0;
   int rgb_pixels = 0, mask_pixels = 0, flow_pixels = 0;  // pixels averaged
 };
 FrameErrors SummarizeErrors(const ErrorMaps& errors, const RenderedFrame& rendered,
                             const ObservedFrame& observed);
+
+// The sampling the model was trained with (Model::training_sampling: samples
+// per ray, near/far margin, clipping, importance resampling); options
+// unchanged for a model without it.
+void SetTrainedSampling(const Model& model, FrameRenderOptions* options);
 
 // Throws InputError naming `data_dir` if the dataset does not match the model:
 // number of videos, frames per video, image size or camera intrinsics
