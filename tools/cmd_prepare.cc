@@ -68,6 +68,11 @@ int RunPrepare(int argc, char** argv) {
   app.add_option("--distance", options.default_distance,
                  "Object distance of the default root poses (scene units)")
       ->capture_default_str();
+  options.max_size = 320;
+  app.add_option("--max-size", options.max_size,
+                 "Working resolution: frames whose longer side exceeds this many pixels are "
+                 "scaled down to it before the flow (0 = as read; docs/dataset.md)")
+      ->capture_default_str();
   app.add_option("--max-frames", options.max_frames, "Use at most this many frames (0 = all)")
       ->capture_default_str();
   app.add_option("--flow-preset", preset,

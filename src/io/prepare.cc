@@ -100,6 +100,10 @@ void PrepareOptions::Check() const {
     ThrowInputError("prepare: default_distance must be > 0, found ", default_distance);
   }
   if (max_frames < 0) ThrowInputError("prepare: max_frames must be >= 0");
+  if (max_size != 0 && (max_size < 16 || max_size > 16384)) {
+    ThrowInputError("prepare: --max-size must be 0 (as read) or 16..16384 pixels, found ",
+                    max_size);
+  }
   flow.Check();
 }
 
@@ -428,6 +432,79 @@ void ComputeFlows(const std::vector<int>& gaps, const OpticalFlowOptions& option
   }
 }
 
+// The size of frames of width x height whose longer side is at most
+// max_size (0: unchanged), rounded to whole pixels.
+cv::Size WorkingSize(int width, int height, int max_size) {
+  const int longer = std::max(width, height);
+  if (max_size == 0 || longer <= max_size) return {width, height};
+  const double s = static_cast<double>(max_size) / longer;
+  return {std::max(1, static_cast<int>(std::lround(width * s))),
+          std::max(1, static_cast<int>(std::lround(height * s)))};
+}
+
+// A mask scaled down by a vote over each output pixel's area: ignore where
+// at least half of it is ignore, else object where at least half is
+// object, else background.
+cv::Mat DownsampleMask(const cv::Mat& mask, cv::Size size) {
+  cv::Mat object, ignore;
+  cv::Mat(mask == kMaskObject).convertTo(object, CV_32F, 1.0 / 255.0);
+  cv::Mat(mask == kMaskIgnore).convertTo(ignore, CV_32F, 1.0 / 255.0);
+  cv::resize(object, object, size, 0, 0, cv::INTER_AREA);
+  cv::resize(ignore, ignore, size, 0, 0, cv::INTER_AREA);
+  cv::Mat out(size, CV_8UC1);
+  for (int r = 0; r < size.height; ++r) {
+    for (int c = 0; c < size.width; ++c) {
+      out.at<unsigned char>(r, c) = ignore.at<float>(r, c) >= 0.5f   ? kMaskIgnore
+                                    : object.at<float>(r, c) >= 0.5f ? kMaskObject
+                                                                     : kMaskBackground;
+    }
+  }
+  return out;
+}
+
+// Scales the frames of `video` (rgb, mask, features) to `size` when they
+// are larger; a frame whose mask loses its last object pixel is skipped.
+void ScaleFrames(cv::Size size, const std::string& source, Video* video) {
+  const int n = static_cast<int>(video->frames.size());
+  ParallelFor(n, [&](int begin, int end) {
+    for (int t = begin; t < end; ++t) {
+      Frame& f = video->frames[t];
+      cv::Mat rgb;
+      cv::resize(f.rgb, rgb, size, 0, 0, cv::INTER_AREA);
+      f.rgb = rgb;
+      f.mask = DownsampleMask(f.mask, size);
+      if (!f.features.empty()) {
+        cv::Mat wide, small;
+        f.features.convertTo(wide, CV_32F);
+        cv::resize(wide, small, size, 0, 0, cv::INTER_AREA);
+        small.convertTo(f.features, CV_16F);
+        const std::size_t pixel_bytes = f.features.elemSize();
+        for (int r = 0; r < size.height; ++r) {
+          for (int c = 0; c < size.width; ++c) {
+            if (f.mask.at<unsigned char>(r, c) == kMaskBackground) {
+              std::memset(f.features.ptr(r) + c * pixel_bytes, 0, pixel_bytes);
+            }
+          }
+        }
+      }
+    }
+  });
+  for (Frame& f : video->frames) {
+    if (!f.skip && cv::countNonZero(f.mask == kMaskObject) == 0) {
+      LOG(WARNING) << source << ": frame " << f.index
+                   << ": no object pixel left at the working resolution; it will be skipped";
+      f.skip = true;
+    }
+  }
+  int usable = 0;
+  for (const Frame& f : video->frames) usable += f.skip ? 0 : 1;
+  if (usable < 2) {
+    ThrowInputError(source, ": only ", usable,
+                    " frame(s) keep an object pixel at the working size ", size.width, "x",
+                    size.height, " (--max-size); a video needs at least 2");
+  }
+}
+
 }  // namespace
 
 Dataset PrepareDataset(const PrepareOptions& options) {
@@ -440,14 +517,28 @@ Dataset PrepareDataset(const PrepareOptions& options) {
   std::sort(dataset.flow_gaps.begin(), dataset.flow_gaps.end());
   Video& video = dataset.videos.emplace_back();
   video.name = options.video_name;
-  video.camera.width = frames.width;
-  video.camera.height = frames.height;
-  const double focal = std::max(frames.width, frames.height);
+  const cv::Size size = WorkingSize(frames.width, frames.height, options.max_size);
+  video.camera.width = size.width;
+  video.camera.height = size.height;
+  const double focal = std::max(size.width, size.height);
+  // Given intrinsics are of the frames as read: pixel coordinates scale with
+  // the image (the pixel (x, y) covers [x, x + 1) x [y, y + 1)).
+  const double sx = static_cast<double>(size.width) / frames.width;
+  const double sy = static_cast<double>(size.height) / frames.height;
   video.camera.intrinsics =
-      options.intrinsics ? *options.intrinsics
-                         : Eigen::Vector4d(focal, focal, frames.width / 2.0, frames.height / 2.0);
+      options.intrinsics
+          ? Eigen::Vector4d(sx * (*options.intrinsics)[0], sy * (*options.intrinsics)[1],
+                            sx * (*options.intrinsics)[2], sy * (*options.intrinsics)[3])
+          : Eigen::Vector4d(focal, focal, size.width / 2.0, size.height / 2.0);
   BuildFrames(options, frames, masks, &video);
-  ComputeFlows(dataset.flow_gaps, options.flow, frames.rgb, &video);
+  std::vector<cv::Mat> rgb = frames.rgb;
+  if (size.width != frames.width || size.height != frames.height) {
+    LOG(INFO) << "prepare: frames scaled from " << frames.width << "x" << frames.height << " to "
+              << size.width << "x" << size.height << " (max size " << options.max_size << ")";
+    ScaleFrames(size, frames.source, &video);
+    for (int t = 0; t < static_cast<int>(rgb.size()); ++t) rgb[t] = video.frames[t].rgb;
+  }
+  ComputeFlows(dataset.flow_gaps, options.flow, rgb, &video);
   LOG(INFO) << "prepare: flow for " << dataset.flow_gaps.size() << " gaps in " << timer.Seconds()
             << " s";
   return dataset;

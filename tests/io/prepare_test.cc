@@ -283,6 +283,47 @@ TEST(Prepare, FeaturesAreZeroOutsideTheMask) {
   ExpectPrepareError(o, {"features/2.npy", "(24, 32, 16)"});
 }
 
+// --max-size: 32 x 24 frames scaled to 16 x 12. The square (x 8-17,
+// y 6-13) covers the output pixels x 4-8, y 3-6 (at least half of each);
+// intrinsics and features scale with the frames; smaller frames stay.
+TEST(Prepare, MaxSizeScalesFramesMasksIntrinsicsAndFeatures) {
+  TempDir tmp;
+  const std::string root = WriteTiny(tmp.path(), {Square(0, 255), Square(0, 255), Square(0, 255)});
+  std::filesystem::create_directories(root + "/features");
+  for (int t = 0; t < 3; ++t) {
+    WriteNpy(root + "/features/" + std::to_string(t) + ".npy",
+             cv::Mat(24, 32 * kFeatureDim, CV_32FC1, cv::Scalar(0.5)).reshape(kFeatureDim));
+  }
+  PrepareOptions o = TinyOptions(root);
+  o.features_dir = root + "/features";
+  o.intrinsics = Eigen::Vector4d(40, 41, 16, 12);
+  o.max_size = 16;
+  const Dataset d = PrepareDataset(o);
+  const Video& v = d.videos[0];
+  EXPECT_EQ(v.camera.width, 16);
+  EXPECT_EQ(v.camera.height, 12);
+  EXPECT_EQ(v.camera.intrinsics, Eigen::Vector4d(20, 20.5, 8, 6));
+  const Frame& f = v.frames[1];
+  ASSERT_EQ(f.rgb.size(), cv::Size(16, 12));
+  ASSERT_EQ(f.mask.size(), cv::Size(16, 12));
+  EXPECT_EQ(cv::countNonZero(f.mask == kMaskObject), 5 * 4);
+  EXPECT_EQ(f.mask.at<unsigned char>(3, 4), kMaskObject);
+  EXPECT_EQ(f.mask.at<unsigned char>(2, 4), kMaskBackground);
+  ASSERT_EQ(f.features.size(), cv::Size(16, 12));
+  cv::Mat f32;
+  f.features.convertTo(f32, CV_32F);
+  using FeatureVec = cv::Vec<float, kFeatureDim>;
+  EXPECT_EQ(f32.at<FeatureVec>(4, 5)[7], 0.5f);
+  EXPECT_EQ(f32.at<FeatureVec>(0, 0)[7], 0.0f);
+  ASSERT_FALSE(f.flows.empty());
+  EXPECT_EQ(f.flows[0].flow.size(), cv::Size(16, 12));
+  // Frames already within the size are kept as they are.
+  o.max_size = 32;
+  EXPECT_EQ(PrepareDataset(o).videos[0].camera.width, 32);
+  o.max_size = 8;
+  ExpectPrepareError(o, {"--max-size", "16..16384", "8"});
+}
+
 TEST(Prepare, VideoFileInput) {
   TempDir tmp;
   const std::string video = tmp.path() + "/clip.avi";

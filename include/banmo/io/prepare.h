@@ -37,6 +37,13 @@ struct PrepareOptions {
   // Without a poses file: identity rotation, object this far along +z (scene units).
   double default_distance = 3.0;
   int max_frames = 0;  // use at most this many frames from the start (0 = all)
+  // Working resolution: frames whose longer side exceeds this many pixels
+  // are scaled down to it (colour by area averaging, masks by a vote of the
+  // area, features by area averaging; given intrinsics are scaled alike)
+  // before the flow is computed; 0 keeps the size read. The solver samples
+  // rays, so its cost does not grow with pixels, while flow time, memory and
+  // rendering do (docs/dataset.md, "Working resolution").
+  int max_size = 0;
   OpticalFlowOptions flow;
 
   // Throws InputError naming the option on a bad value or missing path.
