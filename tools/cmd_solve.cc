@@ -107,13 +107,13 @@ int RunSolve(int argc, char** argv) {
       ResolveHoldoutEvery(out_dir, resume, app.count("--holdout-every") > 0, holdout_every);
   Timer timer;
   Dataset dataset = LoadDataset(data_dir, DatasetLoadOptions(config));
+  std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
+              dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
   const HoldoutPlan holdout = MarkHeldOutFrames(holdout_every, &dataset);
   if (holdout.every > 0) {
     std::printf("banmo solve: %zu frame(s) held out (1 in %d of each video; --holdout-every)\n",
                 holdout.frames.size(), holdout.every);
   }
-  std::printf("banmo solve: %zu video(s), %d frame(s) loaded from %s in %.1f s\n",
-              dataset.videos.size(), dataset.NumFrames(), data_dir.c_str(), timer.Seconds());
   // Registration and smoothing are deterministic, so a resumed solve gets the
   // same tracks (and the same object centre and scene scale from them).
   PrepareRootPoseInit(config.model, &dataset, "banmo solve");
