@@ -513,8 +513,7 @@ ReportSummary WriteReport(const ReportOptions& options,
   const CsvTable holdout_frames = ReadCsv(holdout_dir + "/frames.csv");
 
   // The page.
-  os << "<h1>banmo report: " << HtmlEscape(fs::absolute(f.run).lexically_normal().string())
-     << "</h1>\n";
+  os << "<h1>banmo report: " << HtmlEscape(f.run) << "</h1>\n";
   os << viewer_html;
   os << "<h2>The run at a glance</h2>\n";
   os << "<p>Model: " << model->num_videos() << " videos, " << model->num_bones() << " bones, "

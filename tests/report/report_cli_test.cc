@@ -2,8 +2,10 @@
 // report of a tiny solve opened in headless Chromium (the viewer draws, the
 // page logs nothing but the viewer's own line, a later animation time gives
 // another picture), and the Khronos glTF validator (npm gltf-validator,
-// tools/node) on `banmo export` of tiny solves of the quadruped, the Fox and
-// a Draco-compressed Fox (and on that Draco file itself). docs/report.md.
+// tools/node) on `banmo export` of tiny solves of the quadruped (8, 2 and 0
+// bones), the Fox and a Draco-compressed Fox (and on that Draco file
+// itself, which may have infos: the validator cannot look into Draco).
+// docs/report.md.
 //
 // BANMO_REPORT_SCREENSHOT=<png> also writes a screenshot of the page's top
 // there (docs/report.png is made so).
@@ -20,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "banmo/report/report.h"
 #include "common/run_banmo.h"
 #include "common/shared_assets.h"
 #include "synth/gltf_files.h"
@@ -141,14 +144,22 @@ double ObjectFraction(const cv::Mat& bgr) {
 
 TEST(ReportCommand, TinyRunOpensInChromiumAndAnimates) {
   const std::string run = TinyRun("quadruped", "--rig quadruped");
-  const CommandResult r =
-      RunBanmo("report --run " + run + " --frames-per-video 1 --turntable 4 --jitter-passes 1");
+  const std::string args = " --frames-per-video 1 --turntable 4 --jitter-passes 1";
+  const CommandResult r = RunBanmo("report --run " + run + args);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   for (const char* line :
        {"export: model.glb", "render: 2 frames (1 per video)", "[2/2] video 1 frame 0",
         "skipped: held-out mask IoU and PSNR: no holdout/summary.json", "wrote "}) {
     EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
   }
+  // Held-out frames (banmo solve --holdout-every): shown when present.
+  fs::create_directories(run + "/solve/holdout");
+  std::ofstream(run + "/solve/holdout/summary.json") << "{\"mask_iou\": 0.8125, \"psnr\": 21.5}\n";
+  std::ofstream(run + "/solve/holdout/frames.csv")
+      << "video,frame,mask_iou,psnr\n0,3,0.75,20.5\n1,5,0.875,22.5\n";
+  const CommandResult h = RunBanmo("report --run " + run + args);
+  ASSERT_EQ(h.exit_code, 0) << h.out;
+  EXPECT_EQ(h.out.find("skipped: held-out"), std::string::npos) << h.out;
   const std::string report = run + "/report";
   for (const char* file :
        {"index.html", "style.css", "viewer.js", "model.js", "model.glb", "three/three.min.js",
@@ -160,7 +171,8 @@ TEST(ReportCommand, TinyRunOpensInChromiumAndAnimates) {
   const std::string html = ReadText(report + "/index.html");
   for (const char* text : {"Chamfer distance per frame", "mask IoU of the rendered frames",
                            "root-pose rotation error per frame", "stage all", "stage detail",
-                           "<td>adam</td>", "F@2%", "video 1 frame 0: mask IoU"}) {
+                           "<td>adam</td>", "F@2%", "video 1 frame 0: mask IoU",
+                           "<th>mask_iou</th><th>psnr</th>", "0.8125", "held-out frames: psnr"}) {
     EXPECT_NE(html.find(text), std::string::npos) << text;
   }
   for (const char* remote : {"http:", "https:", "//cdn", "import "}) {
@@ -203,6 +215,44 @@ TEST(ReportCommand, TinyRunOpensInChromiumAndAnimates) {
   }
 }
 
+// banmo solve's losses.csv and stages.csv, also across --stop-after-batches
+// and --resume: every batch once, in order; the stages' batches add up.
+TEST(SolveLog, LossesAndStagesSurviveAResume) {
+  const std::string run = TinyRun("resumed", "--rig quadruped");
+  const std::string config = std::string(BANMO_SOURCE_DIR) + "/problems/tiny.yaml";
+  const CsvTable whole = ReadCsv(run + "/solve/losses.csv");
+  ASSERT_TRUE(whole.exists);
+  ASSERT_GE(whole.header.size(), 7u);
+  EXPECT_EQ(whole.header[0], "stage");
+  EXPECT_EQ(whole.header[4], "seconds");
+  EXPECT_EQ(whole.header.back(), "total");
+  EXPECT_EQ(whole.rows.size(), 300u);  // 200 + 40 + 60 batches of problems/tiny.yaml
+  const std::string out = run + "/solve_pieces";
+  const std::string solve =
+      "solve --data " + run + "/data --config " + config + " --quiet --no-extract --out " + out;
+  const CommandResult a = RunBanmo(solve + " --stop-after-batches 150");
+  ASSERT_EQ(a.exit_code, 0) << a.out;
+  EXPECT_EQ(ReadCsv(out + "/losses.csv").rows.size(), 150u);
+  const CommandResult b = RunBanmo(solve + " --resume");
+  ASSERT_EQ(b.exit_code, 0) << b.out;
+  const CsvTable pieces = ReadCsv(out + "/losses.csv");
+  ASSERT_EQ(pieces.rows.size(), 300u);
+  const int total = pieces.Column("total_batch");
+  for (size_t r = 0; r < pieces.rows.size(); ++r) {
+    ASSERT_EQ(pieces.Number(r, total), static_cast<double>(r + 1)) << "row " << r;
+  }
+  // The same losses as the uninterrupted solve (a resume repeats it).
+  const int rgb = pieces.Column("rgb");
+  EXPECT_EQ(pieces.rows[299][rgb], whole.rows[299][whole.Column("rgb")]);
+  const CsvTable stages = ReadCsv(out + "/stages.csv");
+  ASSERT_EQ(stages.rows.size(), 3u);
+  const int batches = stages.Column("batches");
+  EXPECT_EQ(stages.Number(0, batches), 200.0);
+  EXPECT_EQ(stages.Number(1, batches), 40.0);
+  EXPECT_EQ(stages.Number(2, batches), 60.0);
+  EXPECT_GT(stages.Number(0, stages.Column("rays_per_second")), 0.0);
+}
+
 TEST(ReportCommand, MissingRunIsAnErrorAndWritesNothing) {
   const std::string run = Temp("no_run");
   fs::remove_all(run);
@@ -241,6 +291,24 @@ TEST(KhronosValidator, ExportsHaveNoErrorsOrWarnings) {
       ASSERT_EQ(e.exit_code, 0) << e.out;
       files.push_back(out);
     }
+  }
+  // Models with 2 bones (spare influence slots: joint 0, weight 0) and
+  // none (rigid, no skin), on the quadruped's data.
+  const std::string tiny = ReadText(std::string(BANMO_SOURCE_DIR) + "/problems/tiny.yaml");
+  ASSERT_NE(tiny.find("num_bones: 8"), std::string::npos);
+  for (const int bones : {2, 0}) {
+    std::string config = tiny;
+    config.replace(config.find("num_bones: 8"), 12, "num_bones: " + std::to_string(bones));
+    const std::string name = "bones" + std::to_string(bones);
+    std::ofstream(Temp(name + ".yaml")) << config;
+    const CommandResult r =
+        RunBanmo("solve --data " + Temp("quadruped_v") + "/data --config " + Temp(name + ".yaml") +
+                 " --quiet --no-extract --overwrite " + "--out " + Temp(name));
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    const std::string out = Temp(name + "_export.glb");
+    const CommandResult e = RunBanmo("export --model " + Temp(name) + "/checkpoint --out " + out);
+    ASSERT_EQ(e.exit_code, 0) << e.out;
+    files.push_back(out);
   }
   std::string args;
   for (const std::string& f : files) args += " " + f;
