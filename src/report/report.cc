@@ -302,7 +302,7 @@ void StagesSection(const RunFolders& f, const CsvTable& stages, const CsvTable& 
 // thinned to at most ~500 points per curve (means over bins of batches).
 void LossSection(const CsvTable& losses, const std::string& solve_dir, Page* page) {
   std::ostringstream& os = page->body;
-  os << "<h2>Loss curves</h2>\n";
+  os << "<h2 id=\"losses\">Loss curves</h2>\n";
   if (!losses.exists) {
     os << "<p class=\"note\">skipped: no losses.csv</p>\n";
     page->Skip("loss curves: no " + solve_dir +
@@ -426,7 +426,7 @@ ReportSummary WriteReport(const ReportOptions& options,
                       s.bytes / 1024.0, s.vertices, s.joints, s.animations, summary.export_seconds);
         say(line);
         std::ostringstream v;
-        v << "<h2>The model</h2>\n<p class=\"note\">The exported animated glTF (<a "
+        v << "<h2 id=\"model\">The model</h2>\n<p class=\"note\">The exported animated glTF (<a "
              "href=\"model.glb\">model.glb</a>: "
           << s.vertices << " vertices, " << s.joints << " joints, one animation per video at "
           << options.fps
@@ -448,8 +448,8 @@ ReportSummary WriteReport(const ReportOptions& options,
     if (!why_not.empty()) {
       page.Skip("3D viewer: " + why_not);
       say("viewer skipped: " + why_not);
-      viewer_html =
-          "<h2>The model</h2>\n<p class=\"note\">viewer skipped: " + HtmlEscape(why_not) + "</p>\n";
+      viewer_html = "<h2 id=\"model\">The model</h2>\n<p class=\"note\">viewer skipped: " +
+                    HtmlEscape(why_not) + "</p>\n";
     }
   }
 
@@ -514,8 +514,11 @@ ReportSummary WriteReport(const ReportOptions& options,
 
   // The page.
   os << "<h1>banmo report: " << HtmlEscape(f.run) << "</h1>\n";
+  os << "<p class=\"note\"><a href=\"#model\">model</a> | <a href=\"#glance\">at a glance</a> | "
+        "<a href=\"#pictures\">pictures</a> | <a href=\"#plots\">per-frame plots</a> | <a "
+        "href=\"#losses\">loss curves</a> | <a href=\"#skipped\">skipped</a></p>\n";
   os << viewer_html;
-  os << "<h2>The run at a glance</h2>\n";
+  os << "<h2 id=\"glance\">The run at a glance</h2>\n";
   os << "<p>Model: " << model->num_videos() << " videos, " << model->num_bones() << " bones, "
      << EnumName(model->options().density) << " density (beta "
      << Num(std::exp(*model->log_beta()), "%.4g") << "), scene scale "
@@ -577,7 +580,7 @@ ReportSummary WriteReport(const ReportOptions& options,
         "--holdout-every)");
   }
 
-  os << "<h2>Pictures</h2>\n";
+  os << "<h2 id=\"pictures\">Pictures</h2>\n";
   if (have_render) {
     os << "<p class=\"note\">banmo render's panels (docs/render.md), left to right: input, "
           "rendered RGB (volume rendering, mean of "
@@ -603,7 +606,7 @@ ReportSummary WriteReport(const ReportOptions& options,
     os << "<p class=\"note\">skipped (see below)</p>\n";
   }
 
-  os << "<h2>Per-frame plots</h2>\n";
+  os << "<h2 id=\"plots\">Per-frame plots</h2>\n";
   if (eval_frames.exists) {
     PlotOptions po;
     po.title = "Chamfer distance per frame (eval)";
@@ -638,7 +641,7 @@ ReportSummary WriteReport(const ReportOptions& options,
   }
   LossSection(losses, f.solve, &page);
 
-  os << "<h2>Skipped</h2>\n";
+  os << "<h2 id=\"skipped\">Skipped</h2>\n";
   if (page.skipped.empty()) {
     os << "<p class=\"note\">nothing</p>\n";
   } else {
@@ -648,7 +651,7 @@ ReportSummary WriteReport(const ReportOptions& options,
   }
   std::error_code config_ec;
   if (fs::exists(f.solve + "/config.yaml", config_ec)) {
-    os << "<h2>Config</h2>\n<details><summary>" << HtmlEscape(f.solve)
+    os << "<h2 id=\"config\">Config</h2>\n<details><summary>" << HtmlEscape(f.solve)
        << "/config.yaml</summary>\n<pre>" << HtmlEscape(ReadFileText(f.solve + "/config.yaml"))
        << "</pre></details>\n";
   }

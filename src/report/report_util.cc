@@ -195,7 +195,18 @@ std::string LinePlotSvg(const std::vector<PlotSeries>& series, const PlotOptions
   if (xmax == xmin) {
     xmin -= 0.5;
     xmax += 0.5;
+  } else {
+    bool points = false;
+    for (const PlotSeries& s : series) points = points || s.points;
+    if (points) {  // markers clear of the frame
+      const double pad = 0.04 * (xmax - xmin);
+      xmin -= pad;
+      xmax += pad;
+    }
   }
+  // A log scale shows at most 8 decades below the largest value; smaller
+  // values sit on the bottom edge.
+  if (options.log_y && ymax - ymin > 8) ymin = ymax - 8;
   if (ymax == ymin) {
     ymin -= options.log_y ? 0.5 : std::max(0.5, std::abs(ymin) * 0.1);
     ymax += options.log_y ? 0.5 : std::max(0.5, std::abs(ymax) * 0.1);
@@ -229,11 +240,12 @@ std::string LinePlotSvg(const std::vector<PlotSeries>& series, const PlotOptions
     std::string path;
     bool pen_down = false;
     for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
-      const double y = y_of(s.y[i]);
+      double y = y_of(s.y[i]);
       if (!std::isfinite(s.x[i]) || !std::isfinite(y)) {
         pen_down = false;
         continue;
       }
+      y = std::max(y, ymin);
       if (s.points) {
         svg << "<circle cx=\"" << Fmt(px(s.x[i])) << "\" cy=\"" << Fmt(py(y))
             << "\" r=\"3\" fill=\"" << color << "\"/>";

@@ -67,6 +67,14 @@ TEST(ReportUtil, LinePlotSvgBreaksAtNanAndDropsNonPositiveOnLogScale) {
   EXPECT_EQ(std::count(path.begin(), path.end(), 'M'), 2) << path;
   EXPECT_EQ(std::count(path.begin(), path.end(), 'L'), 1) << path;
   EXPECT_EQ(svg.find("nan"), std::string::npos);
+  // Values far below the largest sit on the bottom edge of a log plot (8
+  // decades; the plot area ends at y = height - 40 = 240).
+  PlotSeries tiny;
+  tiny.name = "tiny";
+  tiny.x = {0, 1};
+  tiny.y = {1.0, 1e-30};
+  const std::string clamped = LinePlotSvg({tiny}, o);
+  EXPECT_NE(clamped.find("L490.0,240.0\""), std::string::npos) << clamped;
   // No finite data: says so.
   PlotSeries empty;
   empty.x = {0};

@@ -84,7 +84,8 @@ std::string Base64(const std::string& bytes);
 
 // A line plot as an inline <svg> element: one polyline per series (NaN
 // values break the line), axes with ticks, a legend; log_y plots log10 of
-// positive values (others dropped).
+// positive values (others dropped) over at most 8 decades below the largest
+// (smaller values on the bottom edge).
 struct PlotSeries {
   std::string name;
   std::vector<double> x, y;
