@@ -358,11 +358,8 @@ void LossSection(const CsvTable& losses, const std::string& solve_dir, Page* pag
   }
 }
 
-}  // namespace
-
-ReportSummary WriteReport(const ReportOptions& options,
+ReportSummary BuildReport(const ReportOptions& options,
                           const std::function<void(const std::string&)>& progress) {
-  options.Check();
   Timer total;
   const auto say = [&](const std::string& line) {
     if (progress) progress(line);
@@ -692,6 +689,22 @@ ReportSummary WriteReport(const ReportOptions& options,
   summary.index_path = out + "/index.html";
   summary.total_seconds = total.Seconds();
   return summary;
+}
+
+}  // namespace
+
+ReportSummary WriteReport(const ReportOptions& options,
+                          const std::function<void(const std::string&)>& progress) {
+  options.Check();
+  const RunFolders f = FindRunFolders(options.run_dir, options.data_dir);
+  try {
+    return BuildReport(options, progress);
+  } catch (...) {
+    // Nothing half-written: the unfinished folder goes, an earlier report stays.
+    std::error_code ec;
+    fs::remove_all(fs::path(f.run) / "report.tmp", ec);
+    throw;
+  }
 }
 
 }  // namespace banmo
