@@ -583,12 +583,18 @@ ReportSummary BuildReport(const ReportOptions& options,
           "rendered RGB (volume rendering, mean of "
        << ro.frame.jitter_passes
        << " jittered passes), mask agreement (white both, red rendered only, blue input only), "
-          "the articulated mesh, the mesh by dominant bone.</p>\n";
+          "the articulated mesh, the mesh by dominant bone; under each (folded) its rgb, mask "
+          "and flow error maps.</p>\n";
     for (const FrameReport& r : rendered.frames) {
+      const std::string stem = FrameStem(r.video, r.frame);
       os << "<p>video " << r.video << " frame " << r.frame << ": mask IoU "
-         << Num(r.errors.mask_iou) << ", rgb error " << Num(r.errors.rgb) << "</p>\n"
+         << Num(r.errors.mask_iou) << ", rgb error " << Num(r.errors.rgb) << ", flow error "
+         << Num(r.errors.flow, "%.2f") << " px</p>\n"
          << "<img class=\"panel\" alt=\"video " << r.video << " frame " << r.frame
-         << "\" src=\"render/frames/" << FrameStem(r.video, r.frame) << ".png\">\n";
+         << "\" src=\"render/frames/" << stem << ".png\">\n"
+         << "<details><summary>error maps</summary><img class=\"panel\" alt=\"errors\" "
+            "src=\"render/errors/"
+         << stem << ".png\"></details>\n";
     }
     if (rendered.turntable_written > 0) {
       os << "<h3>Turntable of the canonical shape</h3>\n<div class=\"turntable\">";

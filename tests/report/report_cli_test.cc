@@ -164,15 +164,17 @@ TEST(ReportCommand, TinyRunOpensInChromiumAndAnimates) {
   for (const char* file :
        {"index.html", "style.css", "viewer.js", "model.js", "model.glb", "three/three.min.js",
         "three/GLTFLoader.js", "three/OrbitControls.js", "render/frames/video00_frame00000.png",
-        "render/turntable/view003.png", "render/errors.csv"}) {
+        "render/errors/video01_frame00000.png", "render/turntable/view003.png",
+        "render/errors.csv"}) {
     EXPECT_TRUE(fs::exists(report + "/" + file)) << file;
   }
   EXPECT_FALSE(fs::exists(run + "/report.tmp"));
   const std::string html = ReadText(report + "/index.html");
-  for (const char* text : {"Chamfer distance per frame", "mask IoU of the rendered frames",
-                           "root-pose rotation error per frame", "stage all", "stage detail",
-                           "<td>adam</td>", "F@2%", "video 1 frame 0: mask IoU",
-                           "<th>mask_iou</th><th>psnr</th>", "0.8125", "held-out frames: psnr"}) {
+  for (const char* text :
+       {"Chamfer distance per frame", "mask IoU of the rendered frames",
+        "root-pose rotation error per frame", "stage all", "stage detail", "<td>adam</td>", "F@2%",
+        "video 1 frame 0: mask IoU", "src=\"render/errors/video01_frame00000.png\"",
+        "<th>mask_iou</th><th>psnr</th>", "0.8125", "held-out frames: psnr"}) {
     EXPECT_NE(html.find(text), std::string::npos) << text;
   }
   for (const char* remote : {"http:", "https:", "//cdn", "import "}) {
