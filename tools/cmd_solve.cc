@@ -181,7 +181,11 @@ int RunSolve(int argc, char** argv) {
     }
   }
   Solver solver(dataset, config, std::move(model));
+  // OUT/losses.csv and OUT/stages.csv for banmo report (solve_outputs.h).
+  SolveLog log(out_dir, resume);
+  options.on_batch = [&log](const BatchProgress& p, const Model&) { log.Add(p); };
   const SolveResult result = solver.Run(options);
+  log.Write(result);
   if (result.interrupted) {
     std::printf("%s: resume with  banmo solve --data %s --config %s --out %s --resume\n",
                 result.stopped ? "stopped as asked (--stop-after-batches)" : "interrupted",

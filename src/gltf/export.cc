@@ -304,6 +304,13 @@ void AddSkinAttributes(const Model& model, const TriangleMesh& canonical, Buffer
     const double sum = static_cast<double>(f[0]) + f[1] + f[2] + f[3];
     f[0] = static_cast<float>(f[0] + (1.0 - sum));
     for (int k = 0; k < 4; ++k) w[4 * i + k] = f[k];
+    // A slot of weight 0 (fewer bones than slots, or a weight that
+    // underflowed: sharp bones far away) names joint 0, as the Khronos
+    // validator asks (ACCESSOR_JOINTS_USED_ZERO_WEIGHT); slot 0 holds the
+    // largest weight, never 0.
+    for (int k = 1; k < 4; ++k) {
+      if (f[k] == 0.0f) joints[4 * i + k] = 0;
+    }
   }
   summary->max_dropped_weight = std::max(0.0, summary->max_dropped_weight);
   prim->attributes["JOINTS_0"] =

@@ -214,6 +214,31 @@ TEST_F(GltfExport, ExactWithFourBonesOrFewer) {
             kFloatTolerance);
 }
 
+// Sharp bones: most vertices have one bone and weights that underflow to 0
+// for the others; a slot of weight 0 names joint 0 (the Khronos validator
+// warns about a zero weight with another joint, ACCESSOR_JOINTS_USED_ZERO_WEIGHT).
+TEST_F(GltfExport, ZeroWeightSlotsNameJointZero) {
+  const auto model = MakeExportTestModel(8, 5);
+  for (int b = 0; b < model->num_bones(); ++b) {
+    for (int k = 0; k < 3; ++k) model->bones()[kBoneSize * b + kBoneLogScale + k] = std::log(0.004);
+  }
+  const TriangleMesh canonical = ExtractCanonicalMesh(*model, options_.extract);
+  ASSERT_GT(canonical.NumVertices(), 0);
+  tinygltf::Model gltf;
+  BuildGltf(*model, canonical, options_, &gltf);
+  const tinygltf::Primitive& prim = gltf.meshes[0].primitives[0];
+  const Eigen::MatrixXd joints = testing::ReadAccessor(gltf, prim.attributes.at("JOINTS_0"));
+  const Eigen::MatrixXd weights = testing::ReadAccessor(gltf, prim.attributes.at("WEIGHTS_0"));
+  ASSERT_EQ(joints.size(), weights.size());
+  int zero_slots = 0;
+  for (Eigen::Index i = 0; i < weights.size(); ++i) {
+    if (weights(i) != 0.0) continue;
+    ++zero_slots;
+    EXPECT_EQ(joints(i), 0.0) << "slot " << i;
+  }
+  EXPECT_GT(zero_slots, canonical.NumVertices());  // the case is exercised
+}
+
 // The forward delta-skinning logits use the rest-pose code, so the forward
 // weights do not depend on the frame and the export stays exact (3 bones: no
 // truncation).
