@@ -149,6 +149,47 @@ TEST(Realism, BackgroundUnderTheObjectIsNotUsed) {
   EXPECT_GT(background_changed, 0.95 * background);
 }
 
+// With the plain camera (focal 1), full ambient light, unit exposure and
+// white balance and no blur, noise or JPEG, the object's pixels are the plain
+// renderer's (its own colours x shade 1); only rounding may differ.
+TEST(Realism, ObjectPixelsAreTheShadedObjectColour) {
+  SynthOptions o = CasualOptionsFor(2, 3, 64);
+  o.casual.focal_min = o.casual.focal_max = 1.0;
+  o.casual.ambient_min = o.casual.ambient_max = 1.0;
+  o.casual.exposure_min = o.casual.exposure_max = 1.0;
+  o.casual.white_balance = 0;
+  o.casual.blur_subframes = 1;
+  o.casual.noise_read = o.casual.noise_shot = 0;
+  o.casual.jpeg_quality = 0;
+  const SynthScene casual = RenderSyntheticScene(Quadruped(), o);
+  o.realism = Realism::kNone;
+  o.ambient = 1.0;
+  const SynthScene plain = RenderSyntheticScene(Quadruped(), o);
+  int object = 0, equal = 0;
+  for (int v = 0; v < 2; ++v) {
+    for (int f = 0; f < 3; ++f) {
+      const Frame& a = casual.dataset.videos[v].frames[f];
+      const Frame& b = plain.dataset.videos[v].frames[f];
+      ASSERT_EQ(cv::countNonZero(Differs(a.mask_gt, b.mask)), 0);
+      for (int y = 0; y < 64; ++y) {
+        for (int x = 0; x < 64; ++x) {
+          if (b.mask.at<unsigned char>(y, x) != kMaskObject) continue;
+          ++object;
+          const cv::Vec3b pa = a.rgb.at<cv::Vec3b>(y, x), pb = b.rgb.at<cv::Vec3b>(y, x);
+          bool same = true;
+          for (int k = 0; k < 3; ++k) {
+            ASSERT_LE(std::abs(pa[k] - pb[k]), 1) << x << "," << y;
+            same &= pa[k] == pb[k];
+          }
+          equal += same;
+        }
+      }
+    }
+  }
+  EXPECT_GT(object, 1000);
+  EXPECT_GT(equal, 0.99 * object);
+}
+
 TEST(Realism, BackgroundDiffersPerVideoAndMovesWithTheCamera) {
   SynthOptions o = CasualOptionsFor(2, 8, 64);
   o.casual.noise_read = 0;
