@@ -76,12 +76,19 @@ CasualVideo DrawCasualVideo(const CasualOptions& options, std::uint64_t seed, in
 
 namespace {
 
-// Hash of a lattice point to [0, 1).
-double Hash01(std::uint64_t seed, std::int64_t i, std::int64_t j, std::uint64_t salt) {
-  return static_cast<double>(
-             MixSeed(seed, static_cast<std::uint64_t>(i), static_cast<std::uint64_t>(j), salt) >>
-             11) *
-         0x1.0p-53;
+// Hash of a lattice point to [0, 1): the indices mixed into the seed with
+// odd constants, then MurmurHash3's 64-bit finaliser (inlined: the textures
+// take several per pixel).
+inline double Hash01(std::uint64_t seed, std::int64_t i, std::int64_t j, std::uint64_t salt) {
+  std::uint64_t h = seed ^ (static_cast<std::uint64_t>(i) * 0x9E3779B97F4A7C15ULL) ^
+                    (static_cast<std::uint64_t>(j) * 0xC2B2AE3D27D4EB4FULL) ^
+                    (salt * 0x165667B19E3779F9ULL);
+  h ^= h >> 33;
+  h *= 0xFF51AFD7ED558CCDULL;
+  h ^= h >> 33;
+  h *= 0xC4CEB9FE1A85EC53ULL;
+  h ^= h >> 33;
+  return static_cast<double>(h >> 11) * 0x1.0p-53;
 }
 
 // Value noise in [0, 1]: lattice hashes, smoothstep-interpolated.
@@ -162,7 +169,7 @@ Eigen::Vector3d FloorColour(const BackgroundWorld& w, double x, double z) {
       const double px = (i + Hash01(w.seed, i, j, 41)) * cell;
       const double pz = (j + Hash01(w.seed, i, j, 42)) * cell;
       const double r = 0.05 + 0.22 * Hash01(w.seed, i, j, 43);
-      const double d = std::hypot(x - px, z - pz);
+      const double d = std::sqrt((x - px) * (x - px) + (z - pz) * (z - pz));
       if (d < r) {
         const Eigen::Vector3d col = HashColour(Hash01(w.seed, i, j, 44), Hash01(w.seed, i, j, 45),
                                                Hash01(w.seed, i, j, 46));
