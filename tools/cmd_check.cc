@@ -67,6 +67,7 @@ int RunCheck(int argc, char** argv) {
   options.load_features = !quick;
   options.load_flow = !quick;
   options.load_depth = !quick;
+  options.load_mask_gt = !quick;
   const Dataset dataset = LoadDataset(dir, options);
   const double seconds = timer.Seconds();
   const std::uintmax_t bytes = DirectoryBytes(dataset.root);
@@ -100,6 +101,7 @@ int RunCheck(int argc, char** argv) {
     if (v.present.depth) present += " depth";
     if (v.present.gt_mesh) present += " gt_mesh";
     if (v.present.root_poses_gt) present += " root_poses_gt";
+    if (v.present.mask_gt) present += " mask_gt";
     std::string skipped;
     for (const Frame& f : v.frames) {
       if (f.skip) skipped += (skipped.empty() ? "" : ",") + std::to_string(f.index);
@@ -108,6 +110,11 @@ int RunCheck(int argc, char** argv) {
     std::printf("video %s: %zu frames, %dx%d, intrinsics fx %.6g fy %.6g cx %.6g cy %.6g\n",
                 v.name.c_str(), v.frames.size(), v.camera.width, v.camera.height, k[0], k[1], k[2],
                 k[3]);
+    if (v.intrinsics_gt) {
+      const auto& g = *v.intrinsics_gt;
+      std::printf("  true intrinsics (ground truth): fx %.6g fy %.6g cx %.6g cy %.6g\n", g[0], g[1],
+                  g[2], g[3]);
+    }
     std::printf("  present: %s\n", present.c_str());
     std::printf("  skipped frames: %s\n", skipped.empty() ? "none" : skipped.c_str());
   }

@@ -1,6 +1,7 @@
 // banmo synth: render a synthetic multi-video dataset from a rig (a built-in
 // procedural creature or a skinned, animated glTF file). docs/synth.md.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -36,6 +37,34 @@ std::vector<int> ParseGaps(const std::string& text) {
   }
   if (out.empty()) ThrowInputError("--gaps: expected at least one gap");
   return out;
+}
+
+// What --realism casual drew per video and did to the masks.
+void PrintCasualSummary(const synth::ScenePlan& plan, const synth::SynthScene& scene) {
+  std::printf(
+      "  realism casual: intrinsics in the manifest are the default assumption; the "
+      "true ones are intrinsics_gt, exact masks in mask_gt/, no features, every "
+      "root_poses_init the identity\n");
+  for (size_t v = 0; v < scene.casual.size(); ++v) {
+    const synth::CasualVideo& look = plan.casual[v];
+    std::string limbs;
+    int holes = 0;
+    for (size_t f = 0; f < scene.casual[v].size(); ++f) {
+      const synth::CasualFrameRecord& r = scene.casual[v][f];
+      holes += r.holes;
+      if (r.limb_node >= 0) {
+        limbs += (limbs.empty() ? "" : ", ") + std::to_string(f) + " (" +
+                 std::to_string(r.limb_pixels) + " px)";
+      }
+    }
+    std::printf(
+        "  %s: focal %.3f x size, exposure %.3f, white balance (%.3f, 1, %.3f), ambient %.2f, "
+        "sun elevation %.0f deg, noise gain %.2f; %d mask holes, limb missing in frames: %s\n",
+        scene.dataset.videos[v].name.c_str(), look.focal_factor, look.exposure,
+        look.white_balance[0], look.white_balance[2], look.ambient,
+        std::asin(std::clamp(look.light_world.y(), -1.0, 1.0)) * 180 / M_PI, look.noise_gain, holes,
+        limbs.empty() ? "none" : limbs.c_str());
+  }
 }
 
 int RunSynth(int argc, char** argv) {
@@ -98,6 +127,16 @@ int RunSynth(int argc, char** argv) {
                  "(half-extent 1): the written root poses change, the images do not. Models rigs "
                  "whose origin is far from the object (glTF origins at the feet)")
       ->capture_default_str();
+  std::string realism = EnumName(options.realism);
+  app.add_option("--realism", realism,
+                 "none: clean renders (black background, exact masks, pixel features, rough root "
+                 "poses). casual: what a handheld camera sees (docs/synth.md, \"Realism\"): a "
+                 "textured world with the object's shadow, per-video light, exposure, white "
+                 "balance and focal length in [0.6, 1.6] x size (the manifest assumes the "
+                 "default; the truth is intrinsics_gt), motion blur, sensor noise, JPEG at 85, "
+                 "masks degraded like a segmenter's (exact ones in mask_gt/), no features and no "
+                 "rough root poses (the truth stays in root_poses_gt.txt)")
+      ->capture_default_str();
   app.add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   app.add_option("--out", out_dir, "Output dataset folder (must not exist or be empty)")
       ->required();
@@ -121,6 +160,19 @@ int RunSynth(int argc, char** argv) {
                       " deg; a larger sigma wraps more angles past 180 deg and lowers the mean); "
                       "use --pose-noise-model exact for larger errors");
     }
+  }
+  const std::optional<synth::Realism> realism_mode = ParseEnum<synth::Realism>(realism);
+  if (!realism_mode) {
+    ThrowInputError("--realism: unknown mode '", realism, "' (expected one of ",
+                    EnumChoices<synth::Realism>(), ")");
+  }
+  options.realism = *realism_mode;
+  if (options.realism == synth::Realism::kCasual &&
+      (options.pose_noise_deg != 0 || options.pose_noise_model != synth::PoseNoiseModel::kExact)) {
+    ThrowInputError(
+        "--pose-noise/--pose-noise-model: not used with --realism casual (it writes "
+        "no rough root poses: every root_poses_init is the identity at (0, 0, "
+        "--distance))");
   }
   options.root_offset = tools::ParseVector3Option("--root-offset", root_offset);
   options.Check();
@@ -159,6 +211,10 @@ int RunSynth(int argc, char** argv) {
       options.image_size, gaps.c_str(), options.pose_noise_deg, EnumName(options.pose_noise_model),
       static_cast<unsigned long long>(options.seed), bytes / 1e6, bytes / 1e3 / frames,
       render_seconds, write_seconds, total.Seconds());
+  if (options.realism == synth::Realism::kCasual) {
+    PrintCasualSummary(plan, scene);
+    return 0;
+  }
   const synth::PoseNoiseStats noise = synth::MeasurePoseNoise(scene.dataset);
   std::printf(
       "  rough root poses: %s\n"

@@ -214,6 +214,23 @@ void LoadFrame(const internal::Manifest& manifest, const internal::ManifestVideo
       }
     }
   }
+  if (mv.present.mask_gt) {
+    const std::string path = vdir + "/mask_gt/" + png;
+    if (options.load_mask_gt) {
+      frame->mask_gt = DecodePngStrict(ReadFileBytes(path), path, CV_8U, 1, w, h);
+      for (int r = 0; r < h; ++r) {
+        const unsigned char* m = frame->mask_gt.ptr<unsigned char>(r);
+        for (int c = 0; c < w; ++c) {
+          if (m[c] != kMaskObject && m[c] != kMaskBackground && m[c] != kMaskIgnore) {
+            ThrowInputError(path, ": mask value ", int(m[c]), " at (x=", c, ", y=", r,
+                            "), expected 0 (background), 128 (ignore) or 255 (object)");
+          }
+        }
+      }
+    } else {
+      CheckPngFile(path, CV_8U, 1, w, h);
+    }
+  }
   if (mv.present.gt_mesh) {
     const std::string path = vdir + "/gt_mesh/" + FrameFileName(t, "ply");
     std::ifstream in(path, std::ios::binary);
@@ -257,6 +274,7 @@ Dataset LoadDataset(const std::string& dir, const LoadOptions& options) {
     if (mv.present.features) dirs.insert("features");
     if (mv.present.depth) dirs.insert("depth");
     if (mv.present.gt_mesh) dirs.insert("gt_mesh");
+    if (mv.present.mask_gt) dirs.insert("mask_gt");
     CheckListing(vdir, files, dirs, what);
     CheckListing(vdir + "/rgb", FrameFiles(0, mv.frames, "png"), {}, what, mv.frames);
     CheckListing(vdir + "/mask", FrameFiles(0, mv.frames, "png"), {}, what, mv.frames);
@@ -269,6 +287,9 @@ Dataset LoadDataset(const std::string& dir, const LoadOptions& options) {
     }
     if (mv.present.gt_mesh) {
       CheckListing(vdir + "/gt_mesh", FrameFiles(0, mv.frames, "ply"), {}, what, mv.frames);
+    }
+    if (mv.present.mask_gt) {
+      CheckListing(vdir + "/mask_gt", FrameFiles(0, mv.frames, "png"), {}, what, mv.frames);
     }
     if (mv.present.flow) {
       const std::string flow_ext =
@@ -295,6 +316,7 @@ Dataset LoadDataset(const std::string& dir, const LoadOptions& options) {
     video.camera.width = mv.width;
     video.camera.height = mv.height;
     video.camera.intrinsics = mv.intrinsics;
+    video.intrinsics_gt = mv.intrinsics_gt;
     video.present = mv.present;
     const std::vector<Pose> init = ReadPoseFile(vdir + "/" + internal::kPosesInitName, mv.frames);
     std::vector<Pose> gt;

@@ -59,12 +59,18 @@ internal::ManifestVideo CheckVideo(const Dataset& dataset, const Video& video, i
   mv.width = cam.width;
   mv.height = cam.height;
   mv.intrinsics = cam.intrinsics;
+  if (video.intrinsics_gt) {
+    internal::CheckIntrinsics(*video.intrinsics_gt, cam.width, cam.height,
+                              where + " (intrinsics_gt)");
+    mv.intrinsics_gt = video.intrinsics_gt;
+  }
   const Frame& f0 = video.frames[0];
   mv.present.features = !f0.features.empty();
   mv.present.flow = !f0.flows.empty();
   mv.present.depth = !f0.depth.empty();
   mv.present.root_poses_gt = f0.root_pose_gt.has_value();
   mv.present.gt_mesh = gt_meshes != nullptr || !f0.gt_mesh_path.empty();
+  mv.present.mask_gt = !f0.mask_gt.empty();
   // Video::present (set by LoadDataset) claims data the frames do not hold:
   // most likely loaded with LoadOptions that skipped it. Refuse rather than
   // silently drop it.
@@ -74,6 +80,7 @@ internal::ManifestVideo CheckVideo(const Dataset& dataset, const Video& video, i
                         : claimed.depth && !mv.present.depth                 ? "depth"
                         : claimed.gt_mesh && !mv.present.gt_mesh             ? "gt_mesh"
                         : claimed.root_poses_gt && !mv.present.root_poses_gt ? "root_poses_gt"
+                        : claimed.mask_gt && !mv.present.mask_gt             ? "mask_gt"
                                                                              : nullptr;
   if (dropped != nullptr) {
     ThrowInputError(where, ": Video::present lists ", dropped,
@@ -99,17 +106,21 @@ internal::ManifestVideo CheckVideo(const Dataset& dataset, const Video& video, i
       ThrowInputError(fw, ": mask must be CV_8UC1 of ", cam.width, "x", cam.height);
     }
     if (mv.present.features != !f.features.empty() || mv.present.flow != !f.flows.empty() ||
-        mv.present.depth != !f.depth.empty() ||
+        mv.present.depth != !f.depth.empty() || mv.present.mask_gt != !f.mask_gt.empty() ||
         mv.present.root_poses_gt != f.root_pose_gt.has_value() ||
         (gt_meshes == nullptr && mv.present.gt_mesh == f.gt_mesh_path.empty())) {
-      ThrowInputError(fw,
-                      ": has a different set of data (features, flow, depth, root_pose_gt, "
-                      "gt_mesh_path) than frame 0; every frame of a video must have the same");
+      ThrowInputError(
+          fw,
+          ": has a different set of data (features, flow, depth, mask_gt, "
+          "root_pose_gt, gt_mesh_path) than frame 0; every frame of a video must have the same");
     }
     if (mv.present.features && (f.features.size() != size || f.features.channels() != kFeatureDim ||
                                 (f.features.depth() != CV_16F && f.features.depth() != CV_32F))) {
       ThrowInputError(fw, ": features must be CV_16FC(", kFeatureDim, ") of ", cam.width, "x",
                       cam.height);
+    }
+    if (mv.present.mask_gt && (f.mask_gt.type() != CV_8UC1 || f.mask_gt.size() != size)) {
+      ThrowInputError(fw, ": mask_gt must be CV_8UC1 of ", cam.width, "x", cam.height);
     }
     if (mv.present.depth && (f.depth.type() != CV_32FC1 || f.depth.size() != size)) {
       ThrowInputError(fw, ": depth must be CV_32FC1 of ", cam.width, "x", cam.height);
@@ -191,6 +202,18 @@ void WriteFrame(const Dataset& dataset, const Video& video, int t, const std::st
     }
   }
   WriteImage(vdir + "/mask/" + png, f.mask, options.png_compression);
+  if (mv.present.mask_gt) {
+    for (int r = 0; r < f.mask_gt.rows; ++r) {
+      const unsigned char* m = f.mask_gt.ptr<unsigned char>(r);
+      for (int c = 0; c < f.mask_gt.cols; ++c) {
+        if (m[c] != kMaskBackground && m[c] != kMaskIgnore && m[c] != kMaskObject) {
+          ThrowInputError(fw, ": mask_gt value ", int(m[c]), " at (x=", c, ", y=", r,
+                          ") is not 0, 128 or 255");
+        }
+      }
+    }
+    WriteImage(vdir + "/mask_gt/" + png, f.mask_gt, options.png_compression);
+  }
   if (mv.present.features) {
     cv::Mat half = f.features;
     if (half.depth() != CV_16F) f.features.convertTo(half, CV_16F);
@@ -345,6 +368,7 @@ void WriteContents(const Dataset& dataset, const internal::Manifest& manifest,
     if (mv.present.features) MakeDirectories(vdir + "/features");
     if (mv.present.depth) MakeDirectories(vdir + "/depth");
     if (mv.present.gt_mesh) MakeDirectories(vdir + "/gt_mesh");
+    if (mv.present.mask_gt) MakeDirectories(vdir + "/mask_gt");
     if (mv.present.flow) {
       for (int g : manifest.flow_gaps) {
         MakeDirectories(vdir + "/flow/fw_" + std::to_string(g));

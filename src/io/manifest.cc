@@ -14,7 +14,8 @@ namespace {
 
 // Names of the `present` entries. rgb, mask and root_poses_init are required.
 constexpr const char* kRequiredData[] = {"rgb", "mask", "root_poses_init"};
-constexpr const char* kOptionalData[] = {"flow", "features", "depth", "gt_mesh", "root_poses_gt"};
+constexpr const char* kOptionalData[] = {"flow",    "features",      "depth",
+                                         "gt_mesh", "root_poses_gt", "mask_gt"};
 
 std::string Where(const std::string& path, const YAML::Node& node) {
   const YAML::Mark mark = node.Mark();
@@ -162,7 +163,7 @@ VideoContents ReadPresent(const YAML::Node& present, const std::string& path,
     if (!known) {
       ThrowInputError(Where(path, p), ": unknown entry '", item, "' in ", vctx,
                       ".present (expected rgb, mask, root_poses_init, flow, features, depth, "
-                      "gt_mesh, root_poses_gt)");
+                      "gt_mesh, root_poses_gt, mask_gt)");
     }
     items.insert(item);
   }
@@ -177,6 +178,7 @@ VideoContents ReadPresent(const YAML::Node& present, const std::string& path,
   c.depth = items.count("depth") > 0;
   c.gt_mesh = items.count("gt_mesh") > 0;
   c.root_poses_gt = items.count("root_poses_gt") > 0;
+  c.mask_gt = items.count("mask_gt") > 0;
   return c;
 }
 
@@ -184,7 +186,8 @@ VideoContents ReadPresent(const YAML::Node& present, const std::string& path,
 ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::string& path,
                              const Manifest& m, std::set<std::string>* names) {
   const std::string ctx = "videos[" + std::to_string(i) + "]";
-  CheckKeys(v, path, ctx, {"name", "frames", "width", "height", "intrinsics", "present"});
+  CheckKeys(v, path, ctx,
+            {"name", "frames", "width", "height", "intrinsics", "intrinsics_gt", "present"});
   ManifestVideo mv;
   mv.name = As<std::string>(Required(v, "name", path, ctx), path, ctx + ".name", "a string");
   CheckVideoName(mv.name, Where(path, v["name"]));
@@ -213,6 +216,16 @@ ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::stri
     mv.intrinsics[j] = As<double>(k[j], path, vctx + ".intrinsics", "4 numbers");
   }
   CheckIntrinsics(mv.intrinsics, mv.width, mv.height, Where(path, k) + ": " + vctx + ".intrinsics");
+  if (const YAML::Node kg = v["intrinsics_gt"]) {
+    if (!kg.IsSequence() || kg.size() != 4) {
+      ThrowInputError(Where(path, kg), ": ", vctx, ".intrinsics_gt: expected [fx, fy, cx, cy]");
+    }
+    Eigen::Vector4d gt;
+    for (int j = 0; j < 4; ++j)
+      gt[j] = As<double>(kg[j], path, vctx + ".intrinsics_gt", "4 numbers");
+    CheckIntrinsics(gt, mv.width, mv.height, Where(path, kg) + ": " + vctx + ".intrinsics_gt");
+    mv.intrinsics_gt = gt;
+  }
   const YAML::Node present = Required(v, "present", path, vctx);
   mv.present = ReadPresent(present, path, vctx);
   if (mv.present.flow && m.flow_gaps.empty()) {
@@ -274,12 +287,18 @@ std::string EmitManifest(const Manifest& m) {
     out << YAML::Key << "height" << YAML::Value << v.height;
     out << YAML::Key << "intrinsics" << YAML::Value << YAML::Flow << YAML::BeginSeq
         << v.intrinsics[0] << v.intrinsics[1] << v.intrinsics[2] << v.intrinsics[3] << YAML::EndSeq;
+    if (v.intrinsics_gt) {
+      const Eigen::Vector4d& k = *v.intrinsics_gt;
+      out << YAML::Key << "intrinsics_gt" << YAML::Value << YAML::Flow << YAML::BeginSeq << k[0]
+          << k[1] << k[2] << k[3] << YAML::EndSeq;
+    }
     std::vector<std::string> present = {"rgb", "mask", "root_poses_init"};
     if (v.present.flow) present.push_back("flow");
     if (v.present.features) present.push_back("features");
     if (v.present.depth) present.push_back("depth");
     if (v.present.gt_mesh) present.push_back("gt_mesh");
     if (v.present.root_poses_gt) present.push_back("root_poses_gt");
+    if (v.present.mask_gt) present.push_back("mask_gt");
     out << YAML::Key << "present" << YAML::Value << YAML::Flow << present;
     out << YAML::EndMap;
   }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,7 @@ struct ManifestVideo {
   int width = 0;
   int height = 0;
   Eigen::Vector4d intrinsics = Eigen::Vector4d::Zero();  // fx, fy, cx, cy
+  std::optional<Eigen::Vector4d> intrinsics_gt;          // the true ones, if given
   VideoContents present;
 };
 

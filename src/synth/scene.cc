@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <opencv2/imgproc.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -64,6 +66,14 @@ void SynthOptions::Check() const {
     fail("light_in_camera", "a non-zero direction");
   }
   if (background.minCoeff() < 0 || background.maxCoeff() > 255) fail("background", "in [0, 255]");
+  if (realism == Realism::kCasual) {
+    casual.Check();
+    if (pose_noise_deg != 0 || pose_noise_model != PoseNoiseModel::kExact) {
+      fail("pose_noise_deg",
+           "0 with the exact model under realism casual (it writes no rough "
+           "root poses: every root_poses_init is the identity)");
+    }
+  }
 }
 
 RigNormalization ComputeNormalization(const Rig& rig) {
@@ -258,44 +268,37 @@ ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
       options.pose_noise_model == PoseNoiseModel::kGaussian ? GaussianNoiseSigma(noise_angle) : 0.0;
 
   plan.frames.resize(nvid);
+  plan.cameras.assign(nvid, plan.camera);
+  plan.paths.resize(nvid);
+  if (options.realism == Realism::kCasual) {
+    for (int v = 0; v < nvid; ++v) {
+      plan.casual.push_back(DrawCasualVideo(options.casual, options.seed, v));
+      const double f = plan.casual[v].focal_factor * s;
+      plan.cameras[v].intrinsics = Eigen::Vector4d(f, f, 0.5 * s, 0.5 * s);
+    }
+  }
   for (int v = 0; v < nvid; ++v) {
     std::mt19937_64 rng(MixSeed(options.seed, 1, v));
-    const double az0 = v * spacing + (UniformDraw(rng) - 0.5) * 0.2 * spacing;
-    const double dist = options.camera_distance * (1 + 0.1 * (UniformDraw(rng) - 0.5));
-    const double speed = 1 + options.speed_jitter * (2 * UniformDraw(rng) - 1);
-    const double offset = UniformDraw(rng) * std::max(duration, 1e-9);
-    const double yaw0 = 360 * UniformDraw(rng);
-    const double phase = 2 * M_PI * UniformDraw(rng);
+    VideoPath& path = plan.paths[v];
+    path.azimuth0_deg = v * spacing + (UniformDraw(rng) - 0.5) * 0.2 * spacing;
+    path.sweep_deg = sweep;
+    path.distance = options.camera_distance * (1 + 0.1 * (UniformDraw(rng) - 0.5));
+    // A longer lens from further away: the object keeps its size in the image.
+    if (options.realism == Realism::kCasual) {
+      path.distance *= plan.casual[v].focal_factor / options.focal_factor;
+    }
+    path.speed = 1 + options.speed_jitter * (2 * UniformDraw(rng) - 1);
+    path.offset = UniformDraw(rng) * std::max(duration, 1e-9);
+    path.yaw0_deg = 360 * UniformDraw(rng);
+    path.phase = 2 * M_PI * UniformDraw(rng);
+    path.elevation_deg = elevation[v];
     std::mt19937_64 noise_rng(MixSeed(options.seed, 2, v));
     plan.frames[v].resize(nfr);
     for (int f = 0; f < nfr; ++f) {
       FramePlan& fp = plan.frames[v][f];
-      const double a = static_cast<double>(f) / (nfr - 1);  // progress in [0, 1]
-      fp.animation_time =
-          plan.animation->WrapTime(plan.animation->StartTime() + offset + speed * f / options.fps);
-      // world_from_root: yaw wobble and horizontal drift.
-      Eigen::Isometry3d world_from_root = Eigen::Isometry3d::Identity();
-      const double yaw =
-          (yaw0 + options.root_yaw_wobble_deg * std::sin(2 * M_PI * a + phase)) * kDegToRad;
-      world_from_root.linear() =
-          Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()).toRotationMatrix();
-      world_from_root.translation() =
-          options.root_drift *
-          Eigen::Vector3d(std::sin(M_PI * a + phase), 0, std::cos(M_PI * a + phase) - 1);
-      // Look at the posed object's bounding-box centre.
-      const Eigen::Matrix3Xd posed = PosedVerticesInRoot(rig, plan, fp.animation_time);
-      const Eigen::Vector3d centre_root =
-          0.5 * (posed.rowwise().minCoeff() + posed.rowwise().maxCoeff());
-      const Eigen::Vector3d target = world_from_root * centre_root;
-      const double az = (az0 + sweep * a) * kDegToRad;
-      const double el =
-          (elevation[v] + options.elevation_wobble_deg * std::sin(2 * M_PI * a + phase)) *
-          kDegToRad;
-      const Eigen::Vector3d eye =
-          target + dist * Eigen::Vector3d(std::cos(el) * std::sin(az), std::sin(el),
-                                          std::cos(el) * std::cos(az));
-      const Eigen::Isometry3d camera_from_root =
-          CameraFromWorldLookAt(eye, target) * world_from_root;
+      const FrameCameras cams = CamerasAt(rig, plan, options, v, f);
+      fp.animation_time = cams.animation_time;
+      const Eigen::Isometry3d camera_from_root = cams.camera_from_world * cams.world_from_root;
       fp.camera_from_root_gt = PoseFromIsometry(camera_from_root);
       // Rough initialisation: a rotation about the root origin.
       Eigen::Isometry3d noise = Eigen::Isometry3d::Identity();
@@ -311,6 +314,39 @@ ScenePlan PlanScene(const Rig& rig, const SynthOptions& options) {
     }
   }
   return plan;
+}
+
+FrameCameras CamerasAt(const Rig& rig, const ScenePlan& plan, const SynthOptions& options,
+                       int video, double frame) {
+  const VideoPath& path = plan.paths[video];
+  const int nfr = options.frames_per_video;
+  const double a = frame / (nfr - 1);  // progress in [0, 1]
+  FrameCameras out;
+  out.animation_time = plan.animation->WrapTime(plan.animation->StartTime() + path.offset +
+                                                path.speed * frame / options.fps);
+  // world_from_root: yaw wobble and horizontal drift.
+  const double yaw =
+      (path.yaw0_deg + options.root_yaw_wobble_deg * std::sin(2 * M_PI * a + path.phase)) *
+      kDegToRad;
+  out.world_from_root.linear() =
+      Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  out.world_from_root.translation() =
+      options.root_drift *
+      Eigen::Vector3d(std::sin(M_PI * a + path.phase), 0, std::cos(M_PI * a + path.phase) - 1);
+  // Look at the posed object's bounding-box centre.
+  const Eigen::Matrix3Xd posed = PosedVerticesInRoot(rig, plan, out.animation_time);
+  const Eigen::Vector3d centre_root =
+      0.5 * (posed.rowwise().minCoeff() + posed.rowwise().maxCoeff());
+  const Eigen::Vector3d target = out.world_from_root * centre_root;
+  const double az = (path.azimuth0_deg + path.sweep_deg * a) * kDegToRad;
+  const double el =
+      (path.elevation_deg + options.elevation_wobble_deg * std::sin(2 * M_PI * a + path.phase)) *
+      kDegToRad;
+  const Eigen::Vector3d eye =
+      target + path.distance * Eigen::Vector3d(std::cos(el) * std::sin(az), std::sin(el),
+                                               std::cos(el) * std::cos(az));
+  out.camera_from_world = CameraFromWorldLookAt(eye, target);
+  return out;
 }
 
 namespace {
@@ -391,11 +427,9 @@ struct FrameImaging {
   bool textured = false;       // the rig has a UV per vertex
 };
 
-// The colour of the surface point (face, barycentrics b) of frame geometry g:
-// vertex colour x material (x texture at the interpolated UV), Lambert +
-// ambient shading with the normal turned towards the camera.
-cv::Vec3b ShadePoint(const FrameImaging& im, const FrameGeometry& g, int face,
-                     const Eigen::Vector3d& b) {
+// The unshaded colour of the surface point (face, barycentrics b): vertex
+// colour x material (x texture at the interpolated UV).
+Eigen::Vector3f SurfaceColour(const FrameImaging& im, int face, const Eigen::Vector3d& b) {
   const Rig& rig = im.rig;
   const int i0 = rig.faces(0, face), i1 = rig.faces(1, face), i2 = rig.faces(2, face);
   const RigMaterial& mat = rig.materials[rig.face_material[face]];
@@ -411,13 +445,31 @@ cv::Vec3b ShadePoint(const FrameImaging& im, const FrameGeometry& g, int face,
     c = c.cwiseProduct(SampleTexture(rig.textures[mat.texture], static_cast<float>(uv[0]),
                                      static_cast<float>(uv[1])));
   }
+  return c;
+}
+
+// max(0, n.l) at the surface point (face, b) of frame geometry g, with the
+// interpolated vertex normal turned towards the camera (l: unit, camera
+// coordinates).
+double LambertAt(const FrameImaging& im, const FrameGeometry& g, int face, const Eigen::Vector3d& b,
+                 const Eigen::Vector3d& light) {
+  const Rig& rig = im.rig;
+  const int i0 = rig.faces(0, face), i1 = rig.faces(1, face), i2 = rig.faces(2, face);
   Eigen::Vector3d n =
       b[0] * g.normals.col(i0) + b[1] * g.normals.col(i1) + b[2] * g.normals.col(i2);
   const Eigen::Vector3d point =
       b[0] * g.vertices.col(i0) + b[1] * g.vertices.col(i1) + b[2] * g.vertices.col(i2);
   if (n.dot(point) > 0) n = -n;
   const double len = n.norm();
-  const double lambert = len > 0 ? std::max(0.0, n.dot(im.light) / len) : 0.0;
+  return len > 0 ? std::max(0.0, n.dot(light) / len) : 0.0;
+}
+
+// The colour of the surface point (face, barycentrics b) of frame geometry g:
+// SurfaceColour with Lambert + ambient shading.
+cv::Vec3b ShadePoint(const FrameImaging& im, const FrameGeometry& g, int face,
+                     const Eigen::Vector3d& b) {
+  const Eigen::Vector3f c = SurfaceColour(im, face, b);
+  const double lambert = LambertAt(im, g, face, b, im.light);
   const double shade = im.options.ambient + (1 - im.options.ambient) * lambert;
   cv::Vec3b px;
   for (int k = 0; k < 3; ++k) {
@@ -500,6 +552,182 @@ void RenderFrameFlows(const FrameImaging& im, const std::vector<int>& flow_gaps,
   }
 }
 
+// Dominant skinning node of each face: the node with the largest summed
+// weight over the face's three vertices.
+std::vector<int> FaceNodes(const Rig& rig) {
+  std::vector<int> out(rig.NumFaces(), -1);
+  std::vector<std::pair<int, double>> acc;
+  for (int f = 0; f < rig.NumFaces(); ++f) {
+    acc.clear();
+    for (int c = 0; c < 3; ++c) {
+      const int vtx = rig.faces(c, f);
+      for (int k = 0; k < kMaxVertexInfluences; ++k) {
+        const int inf = rig.vertex_influences(k, vtx);
+        if (inf < 0) continue;
+        const int node = rig.influences[inf].node;
+        auto it =
+            std::find_if(acc.begin(), acc.end(), [&](const auto& p) { return p.first == node; });
+        if (it == acc.end()) {
+          acc.emplace_back(node, rig.vertex_weights(k, vtx));
+        } else {
+          it->second += rig.vertex_weights(k, vtx);
+        }
+      }
+    }
+    double best = -1;
+    for (const auto& [node, weight] : acc) {
+      if (weight > best) {
+        best = weight;
+        out[f] = node;
+      }
+    }
+  }
+  return out;
+}
+
+// The pixels of a limb: of the rig nodes whose subtree covers between
+// limb_share_min and limb_share_max of the object's pixels (by each visible
+// face's dominant node), the one at `pick` in [0, 1) (node order). Empty when
+// no node qualifies.
+cv::Mat LimbPixels(const Rig& rig, const std::vector<int>& face_node, const cv::Mat& face_map,
+                   const CasualOptions& options, double pick, int* chosen) {
+  const int nodes = static_cast<int>(rig.nodes.size());
+  std::vector<long> count(nodes, 0), subtree(nodes, 0);
+  long total = 0;
+  for (int y = 0; y < face_map.rows; ++y) {
+    const int* fm = face_map.ptr<int>(y);
+    for (int x = 0; x < face_map.cols; ++x) {
+      if (fm[x] < 0) continue;
+      ++total;
+      if (face_node[fm[x]] >= 0) ++count[face_node[fm[x]]];
+    }
+  }
+  for (int n = 0; n < nodes; ++n) {
+    for (int m = n; m >= 0 && count[n] > 0; m = rig.nodes[m].parent) subtree[m] += count[n];
+  }
+  std::vector<int> candidates;
+  for (int n = 0; n < nodes; ++n) {
+    const double share = total > 0 ? static_cast<double>(subtree[n]) / total : 0.0;
+    if (subtree[n] > 0 && share >= options.limb_share_min && share <= options.limb_share_max) {
+      candidates.push_back(n);
+    }
+  }
+  *chosen = -1;
+  if (candidates.empty()) return cv::Mat();
+  *chosen =
+      candidates[std::min(candidates.size() - 1, static_cast<size_t>(pick * candidates.size()))];
+  std::vector<unsigned char> inside(nodes, 0);
+  for (int n = 0; n < nodes; ++n) {
+    for (int m = n; m >= 0; m = rig.nodes[m].parent) {
+      if (m == *chosen) {
+        inside[n] = 1;
+        break;
+      }
+    }
+  }
+  cv::Mat limb = cv::Mat::zeros(face_map.size(), CV_8UC1);
+  for (int y = 0; y < face_map.rows; ++y) {
+    const int* fm = face_map.ptr<int>(y);
+    unsigned char* l = limb.ptr<unsigned char>(y);
+    for (int x = 0; x < face_map.cols; ++x) {
+      if (fm[x] >= 0 && face_node[fm[x]] >= 0 && inside[face_node[fm[x]]]) l[x] = 255;
+    }
+  }
+  return limb;
+}
+
+// What a video's casual frames are made from.
+struct CasualContext {
+  const ScenePlan& plan;
+  const CasualVideo& look;
+  BackgroundWorld world;
+  const std::vector<int>& face_node;
+};
+
+// Realism casual: RGB (world, shadow, shaded object, motion blur, exposure,
+// white balance, noise, JPEG), degraded mask, exact mask and depth of frame f
+// of video v (geometry g at the frame's instant).
+void RenderCasualFrame(const FrameImaging& im, const CasualContext& ctx, int v, int f,
+                       const FrameGeometry& g, Frame* frame, CasualFrameRecord* record) {
+  const SynthOptions& options = im.options;
+  const CasualOptions& co = options.casual;
+  const CasualVideo& look = ctx.look;
+  const int w = im.camera.width, h = im.camera.height;
+  frame->depth = g.raster.depth.clone();
+  frame->mask_gt = cv::Mat(h, w, CV_8UC1, cv::Scalar(kMaskBackground));
+  frame->mask_gt.setTo(kMaskObject, g.raster.face >= 0);
+  // Radiance averaged over the sub-frames of the shutter interval.
+  cv::Mat radiance(h, w, CV_32FC3, cv::Scalar::all(0));
+  const int subframes = co.blur_subframes;
+  for (int k = 0; k < subframes; ++k) {
+    const double offset = subframes == 1 ? 0.0 : co.shutter * ((k + 0.5) / subframes - 0.5);
+    const FrameCameras cams = CamerasAt(im.rig, ctx.plan, options, v, f + offset);
+    const Eigen::Matrix3Xd posed = PosedVerticesInRoot(im.rig, ctx.plan, cams.animation_time);
+    FrameGeometry moved;
+    const FrameGeometry* geo = &g;
+    if (offset != 0) {
+      moved.vertices = (cams.camera_from_world * cams.world_from_root) * posed;
+      moved.normals = VertexNormals(moved.vertices, im.rig.faces);
+      moved.raster = Rasterize(im.camera, moved.vertices, im.rig.faces);
+      geo = &moved;
+    }
+    cv::Mat sub(h, w, CV_32FC3, cv::Scalar::all(0));
+    if (co.background) {
+      cv::Mat shadow;
+      if (co.shadow) {
+        const Eigen::Matrix3Xd flat =
+            ProjectOntoGround(cams.world_from_root * posed, ctx.world.ground_y, look.light_world);
+        const RasterBuffers cast =
+            Rasterize(im.camera, cams.camera_from_world * flat, im.rig.faces);
+        shadow = cv::Mat::zeros(h, w, CV_32FC1);
+        shadow.setTo(1.0f, cast.face >= 0);
+        const double sigma = std::max(0.5, 0.006 * w);
+        cv::GaussianBlur(shadow, shadow, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
+      }
+      sub = RenderBackground(ctx.world, im.camera, cams.camera_from_world, look.light_world,
+                             look.ambient, shadow, co.shadow_strength);
+    }
+    const Eigen::Vector3d light = cams.camera_from_world.linear() * look.light_world;
+    for (int y = 0; y < h; ++y) {
+      cv::Vec3f* row = sub.ptr<cv::Vec3f>(y);
+      const int* fm = geo->raster.face.ptr<int>(y);
+      for (int x = 0; x < w; ++x) {
+        if (fm[x] < 0) continue;  // the background stays only where no object is
+        const Eigen::Vector3d b = geo->raster.Barycentrics(x, y);
+        const Eigen::Vector3f c = SurfaceColour(im, fm[x], b);
+        const double shade =
+            look.ambient + (1 - look.ambient) * LambertAt(im, *geo, fm[x], b, light);
+        row[x] = cv::Vec3f(static_cast<float>(c[0] * shade), static_cast<float>(c[1] * shade),
+                           static_cast<float>(c[2] * shade));
+      }
+    }
+    radiance += sub;
+  }
+  if (subframes > 1) radiance *= 1.0 / subframes;
+  // Camera: exposure and white balance, sensor noise, 8 bits, JPEG.
+  cv::Mat signal;
+  radiance.convertTo(signal, CV_32FC3, 255.0 * look.exposure);
+  signal =
+      signal.mul(cv::Scalar(look.white_balance[0], look.white_balance[1], look.white_balance[2]));
+  if (co.noise_read > 0 || co.noise_shot > 0) {
+    std::mt19937_64 noise_rng(MixSeed(options.seed, kStreamSensorNoise, v, f));
+    AddSensorNoise(&signal, co.noise_read, co.noise_shot, look.noise_gain, noise_rng);
+  }
+  signal.convertTo(frame->rgb, CV_8UC3);  // rounds and saturates
+  if (co.jpeg_quality > 0) frame->rgb = JpegRoundTrip(frame->rgb, co.jpeg_quality);
+  // Mask as a segmenter would give it.
+  std::mt19937_64 mask_rng(MixSeed(options.seed, kStreamMask, v, f));
+  const bool drop = UniformDraw(mask_rng) < co.limb_drop_rate;
+  const double pick = UniformDraw(mask_rng);
+  cv::Mat limb;
+  if (drop) limb = LimbPixels(im.rig, ctx.face_node, g.raster.face, co, pick, &record->limb_node);
+  MaskDegradation degraded = DegradeMask(frame->mask_gt, limb, co, mask_rng);
+  frame->mask = degraded.mask;
+  record->limb_pixels = degraded.limb_pixels;
+  record->holes = static_cast<int>(degraded.holes.size());
+  record->boundary_amplitude = degraded.boundary_amplitude;
+}
+
 // Video v of the scene: the frames' data and the ground-truth meshes.
 void RenderVideo(const FrameImaging& im, const ScenePlan& plan, int v,
                  const Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic>& gt_colors,
@@ -514,11 +742,13 @@ void RenderVideo(const FrameImaging& im, const ScenePlan& plan, int v,
   video.frames.resize(nfr);
   scene->gt_meshes[v].resize(nfr);
   std::vector<FrameGeometry> geometry(nfr);
+  std::vector<double> lowest(nfr);  // lowest posed point (root y = world y)
   // Pass 1: pose, transform, rasterise.
   ParallelFor(nfr, [&](int begin, int end) {
     for (int f = begin; f < end; ++f) {
       const FramePlan& fp = plan.frames[v][f];
       const Eigen::Matrix3Xd posed = PosedVerticesInRoot(rig, plan, fp.animation_time);
+      lowest[f] = posed.row(1).minCoeff();
       const Eigen::Isometry3d camera_from_root = IsometryFromPose(fp.camera_from_root_gt.data());
       FrameGeometry& g = geometry[f];
       g.vertices = camera_from_root * posed;
@@ -530,6 +760,22 @@ void RenderVideo(const FrameImaging& im, const ScenePlan& plan, int v,
       mesh.colors = gt_colors;
     }
   });
+  const bool casual = im.options.realism == Realism::kCasual;
+  std::vector<int> face_node;
+  std::optional<CasualContext> ctx;
+  if (casual) {
+    face_node = FaceNodes(rig);
+    const double ground = *std::min_element(lowest.begin(), lowest.end());
+    ctx.emplace(CasualContext{plan, plan.casual[v], DrawBackgroundWorld(im.options.seed, v, ground),
+                              face_node});
+    scene->casual[v].resize(nfr);
+    // The dataset assumes what `banmo prepare` assumes without --intrinsics;
+    // the truth is kept as ground truth.
+    const double assumed = std::max(im.camera.width, im.camera.height);
+    video.camera.intrinsics =
+        Eigen::Vector4d(assumed, assumed, 0.5 * im.camera.width, 0.5 * im.camera.height);
+    video.intrinsics_gt = im.camera.intrinsics;
+  }
   // Pass 2: images, features and flow.
   ParallelFor(nfr, [&](int begin, int end) {
     for (int f = begin; f < end; ++f) {
@@ -541,7 +787,11 @@ void RenderVideo(const FrameImaging& im, const ScenePlan& plan, int v,
           PoseWithOriginAt(plan.frames[v][f].camera_from_root_gt, -im.options.root_offset);
       frame.root_pose_init =
           PoseWithOriginAt(plan.frames[v][f].camera_from_root_init, -im.options.root_offset);
-      RenderFrameImages(im, v, f, geometry[f], &frame);
+      if (casual) {
+        RenderCasualFrame(im, *ctx, v, f, geometry[f], &frame, &scene->casual[v][f]);
+      } else {
+        RenderFrameImages(im, v, f, geometry[f], &frame);
+      }
       RenderFrameFlows(im, scene->dataset.flow_gaps, f, geometry, &frame);
     }
   });
@@ -591,11 +841,28 @@ SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
   std::sort(scene.dataset.flow_gaps.begin(), scene.dataset.flow_gaps.end());
   scene.dataset.videos.resize(options.num_videos);
   scene.gt_meshes.resize(options.num_videos);
+  if (options.realism == Realism::kCasual) scene.casual.resize(options.num_videos);
   for (int v = 0; v < options.num_videos; ++v) {
-    RenderVideo(im, plan, v, gt_colors, &scene);
+    if (options.realism == Realism::kCasual) {
+      // Each video has its own focal length.
+      const FrameImaging video_im{rig,          options,  plan.cameras[v], embedding,
+                                  im.rest_root, im.light, im.textured};
+      RenderVideo(video_im, plan, v, gt_colors, &scene);
+    } else {
+      RenderVideo(im, plan, v, gt_colors, &scene);
+    }
     if (progress) progress(v + 1, options.num_videos);
   }
   if (options.object_scale != 1.0) ScaleScene(options.object_scale, &scene);
+  if (options.realism == Realism::kCasual) {
+    // No rough root poses: what `banmo prepare` writes without --poses.
+    for (Video& video : scene.dataset.videos) {
+      for (Frame& frame : video.frames) {
+        frame.root_pose_init = PoseIdentity();
+        frame.root_pose_init[kPoseT + 2] = options.camera_distance * options.object_scale;
+      }
+    }
+  }
   if (options.pose_noise_deg > 0 || options.pose_noise_model != PoseNoiseModel::kExact) {
     RecordPoseNoise(options, &scene);
   }

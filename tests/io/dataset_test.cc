@@ -529,6 +529,55 @@ TEST(DatasetBadInput, BadMaskValue) {
   ExpectLoadError(dir, {"video0/mask/00001.png", "mask value 200", "x=6, y=4"});
 }
 
+// Ground truth beside degraded data (banmo synth --realism casual): exact
+// masks in mask_gt/ and the true intrinsics as intrinsics_gt round-trip, are
+// loaded only when asked, and bad ones are errors naming the file and key.
+TEST(Dataset, MaskGtAndIntrinsicsGtRoundTrip) {
+  TempDir tmp;
+  Dataset d = MakeSmallDataset();
+  for (Video& v : d.videos) {
+    v.intrinsics_gt = Eigen::Vector4d(40, 40, 12, 10);
+    for (Frame& f : v.frames) {
+      f.mask_gt = f.mask.clone();
+      f.mask_gt.at<unsigned char>(3, 4) = kMaskObject;
+    }
+  }
+  const auto meshes = MakeGtMeshes(d);
+  const std::string dir = tmp.path() + "/ds";
+  WriteDataset(d, dir, &meshes);
+  EXPECT_NE(ReadText(dir + "/manifest.yaml").find("intrinsics_gt: [40, 40, 12, 10]"),
+            std::string::npos);
+  LoadOptions options = LoadAll();
+  options.load_mask_gt = true;
+  const Dataset loaded = LoadDataset(dir, options);
+  for (std::size_t v = 0; v < d.videos.size(); ++v) {
+    EXPECT_TRUE(loaded.videos[v].present.mask_gt);
+    ASSERT_TRUE(loaded.videos[v].intrinsics_gt.has_value());
+    EXPECT_EQ(*loaded.videos[v].intrinsics_gt, Eigen::Vector4d(40, 40, 12, 10));
+    for (std::size_t t = 0; t < d.videos[v].frames.size(); ++t) {
+      EXPECT_EQ(MaxAbsDiff(loaded.videos[v].frames[t].mask_gt, d.videos[v].frames[t].mask_gt), 0);
+    }
+  }
+  EXPECT_TRUE(LoadDataset(dir).videos[0].frames[0].mask_gt.empty());
+  // Rewriting a dataset loaded without its ground-truth masks would drop them.
+  try {
+    WriteDataset(LoadDataset(dir, LoadAll()), tmp.path() + "/copy", &meshes);
+    FAIL() << "mask_gt dropped silently";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("lists mask_gt"), std::string::npos) << e.what();
+  }
+
+  cv::Mat bad(20, 24, CV_8UC1, cv::Scalar(0));
+  bad.at<unsigned char>(2, 3) = 7;
+  cv::imwrite(dir + "/video0/mask_gt/00001.png", bad);
+  ExpectLoadError(dir, {"video0/mask_gt/00001.png", "mask value 7", "x=3, y=2"}, options);
+  fs::remove(dir + "/video0/mask_gt/00001.png");
+  ExpectLoadError(dir, {"video0/mask_gt/00001.png", "missing file"}, options);
+  ReplaceInFile(dir + "/manifest.yaml", "intrinsics_gt: [40, 40, 12, 10]",
+                "intrinsics_gt: [40, 40, 12]");
+  ExpectLoadError(dir, {"manifest.yaml", "intrinsics_gt", "[fx, fy, cx, cy]"}, options);
+}
+
 TEST(DatasetBadInput, NotAPlyMesh) {
   TempDir tmp;
   const std::string dir = WriteValid(tmp);

@@ -119,5 +119,49 @@ TEST(SynthCommand, RootOffset) {
   EXPECT_FALSE(std::filesystem::exists(bad));
 }
 
+// --realism casual on the quadruped and the Fox: datasets `banmo check`
+// accepts, with the exact masks and true intrinsics as ground truth and no
+// features; `banmo prepare` takes their frames and masks; a bad mode and
+// pose noise with it are errors naming the flag.
+TEST(SynthCommand, RealismCasual) {
+  const std::string fox = banmo::testing::SharedAsset("data/gltf/Fox/Fox.glb");
+  ASSERT_TRUE(banmo::testing::SharedAssetExists(fox));
+  for (const std::string& rig : {std::string("quadruped"), fox}) {
+    const std::string out = Temp("casual_ds");
+    std::filesystem::remove_all(out);
+    const auto r =
+        RunBanmo("synth --rig " + rig +
+                 " --realism casual --videos 2 --frames 4 --size 48 --gaps 1 --out " + out);
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("realism casual"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("video_001: focal "), std::string::npos) << r.out;
+    const auto c = RunBanmo("check " + out);
+    EXPECT_EQ(c.exit_code, 0) << c.out;
+    EXPECT_NE(c.out.find("present: rgb mask root_poses_init flow depth gt_mesh root_poses_gt "
+                         "mask_gt\n"),
+              std::string::npos)
+        << c.out;
+    EXPECT_NE(c.out.find("intrinsics fx 48 fy 48 cx 24 cy 24"), std::string::npos) << c.out;
+    EXPECT_NE(c.out.find("true intrinsics (ground truth): fx "), std::string::npos) << c.out;
+    EXPECT_FALSE(std::filesystem::exists(out + "/video_000/features"));
+    const std::string prepared = Temp("casual_prepared");
+    std::filesystem::remove_all(prepared);
+    const auto p = RunBanmo("prepare --frames " + out + "/video_000/rgb --masks " + out +
+                            "/video_000/mask --gaps 1 --out " + prepared);
+    EXPECT_EQ(p.exit_code, 0) << p.out;
+    EXPECT_EQ(RunBanmo("check " + prepared).exit_code, 0);
+  }
+  const std::string bad = Temp("bad_realism_ds");
+  std::filesystem::remove_all(bad);
+  const auto m = RunBanmo("synth --realism photoreal --out " + bad);
+  EXPECT_EQ(m.exit_code, 2) << m.out;
+  EXPECT_NE(m.out.find("--realism: unknown mode 'photoreal'"), std::string::npos) << m.out;
+  EXPECT_NE(m.out.find("{none, casual}"), std::string::npos) << m.out;
+  const auto n = RunBanmo("synth --realism casual --pose-noise 20 --out " + bad);
+  EXPECT_EQ(n.exit_code, 2) << n.out;
+  EXPECT_NE(n.out.find("--pose-noise"), std::string::npos) << n.out;
+  EXPECT_FALSE(std::filesystem::exists(bad));
+}
+
 }  // namespace
 }  // namespace banmo::synth

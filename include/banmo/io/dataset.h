@@ -41,6 +41,10 @@ struct Frame {
   cv::Mat features;  // CV_16FC(kFeatureDim) (half floats); zero outside the mask; empty if absent
   std::vector<FlowField> flows;  // one per configured gap and direction present
   cv::Mat depth;                 // CV_32FC1 camera z (scene units), 0 = background; empty if absent
+  // Ground-truth mask (CV_8UC1, same values as `mask`) where `mask` is a
+  // degraded one (banmo synth --realism casual); empty if absent. Never read
+  // by the solver.
+  cv::Mat mask_gt;
   Pose root_pose_init = PoseIdentity();  // camera_from_root, rough initialisation G0^t
   std::optional<Pose> root_pose_gt;      // camera_from_root ground truth (synthetic)
   std::string gt_mesh_path;              // posed GT mesh (PLY, camera coords); empty if absent
@@ -61,6 +65,7 @@ struct VideoContents {
   bool depth = false;          // depth/%05d.png (or .npy)
   bool gt_mesh = false;        // gt_mesh/%05d.ply
   bool root_poses_gt = false;  // root_poses_gt.txt
+  bool mask_gt = false;        // mask_gt/%05d.png: exact masks (ground truth)
 };
 
 struct Video {
@@ -72,6 +77,9 @@ struct Video {
   // of root_poses_init.txt, e.g. how `banmo synth` made the rough poses; not
   // read back (LoadDataset leaves it empty).
   std::string root_poses_init_comment;
+  // The true intrinsics (fx, fy, cx, cy) when `camera` holds an assumed one
+  // (manifest key intrinsics_gt; ground truth, never read by the solver).
+  std::optional<Eigen::Vector4d> intrinsics_gt;
 };
 
 struct Dataset {
@@ -90,7 +98,8 @@ inline constexpr int kDatasetFormatVersion = 1;
 struct LoadOptions {
   bool load_features = true;  // features are the largest part; skip if unused
   bool load_flow = true;
-  bool load_depth = false;  // depth is ground truth, only tests need it
+  bool load_depth = false;    // depth is ground truth, only tests need it
+  bool load_mask_gt = false;  // ground-truth masks (mask_gt/), likewise
 };
 
 // Loads and validates the dataset in `dir`. Throws InputError naming the file

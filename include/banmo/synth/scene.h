@@ -34,6 +34,7 @@
 #include "banmo/geometry/se3.h"
 #include "banmo/io/dataset.h"
 #include "banmo/synth/rasterizer.h"
+#include "banmo/synth/realism.h"
 #include "banmo/synth/rig.h"
 #include "banmo/util/enum_names.h"
 
@@ -139,6 +140,16 @@ struct SynthOptions {
   // are those of the centred scene). Models rigs whose origin is far from
   // the object, as glTF rigs with the origin at the feet. |.| <= 100.
   Eigen::Vector3d root_offset = Eigen::Vector3d::Zero();
+  // none: the renders above. casual: what a handheld camera sees (realism.h,
+  // docs/synth.md "Realism"): per-video focal length (the dataset gets the
+  // default assumption, the truth as intrinsics_gt) with the camera distance
+  // scaled by it, a textured world with the object's shadow, per-video light,
+  // exposure and white balance, motion blur, sensor noise, JPEG, degraded
+  // masks (exact ones in mask_gt), no features, and rough root poses that are
+  // all the identity at (0, 0, camera_distance) (the truth stays in
+  // root_poses_gt). pose_noise_deg must be 0.
+  Realism realism = Realism::kNone;
+  CasualOptions casual;
 
   // Throws InputError naming the offending field and the expected range.
   void Check() const;
@@ -159,21 +170,58 @@ struct FramePlan {
   Pose camera_from_root_init = PoseIdentity();
 };
 
+// How video v's camera and object move, drawn once per video.
+struct VideoPath {
+  double azimuth0_deg = 0;   // start of the orbit arc
+  double sweep_deg = 0;      // arc swept over the video
+  double distance = 3;       // camera to the posed object's centre
+  double speed = 1;          // animation speed
+  double offset = 0;         // animation time offset (seconds)
+  double yaw0_deg = 0;       // world_from_root yaw
+  double phase = 0;          // of the wobbles (radians)
+  double elevation_deg = 0;  // mean camera elevation
+};
+
+// Camera and object at a (possibly fractional) frame of a video.
+struct FrameCameras {
+  double animation_time = 0;
+  Eigen::Isometry3d world_from_root = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d camera_from_world = Eigen::Isometry3d::Identity();
+};
+
 // Camera and per-frame plan of every video (deterministic in options.seed).
 struct ScenePlan {
-  PinholeCamera camera;
+  PinholeCamera camera;                  // the nominal camera (focal_factor)
+  std::vector<PinholeCamera> cameras;    // per video: `camera`, or the casual focal length
+  std::vector<VideoPath> paths;          // per video
+  std::vector<CasualVideo> casual;       // per video, realism casual only
   const Animation* animation = nullptr;  // points into the rig
   RigNormalization normalization;
   std::vector<std::vector<FramePlan>> frames;  // [video][frame]
 };
 ScenePlan PlanScene(const Rig& rig, const SynthOptions& options);
 
+// Where object and camera of video `video` are at frame `frame` (fractional
+// frames lie between the planned ones: motion blur). At whole frames
+// camera_from_world * world_from_root is the plan's camera_from_root_gt.
+FrameCameras CamerasAt(const Rig& rig, const ScenePlan& plan, const SynthOptions& options,
+                       int video, double frame);
+
 // Posed mesh of the rig at `time` in root coordinates (normalised).
 Eigen::Matrix3Xd PosedVerticesInRoot(const Rig& rig, const ScenePlan& plan, double time);
 
+// What realism casual did to one frame (for summaries and tests).
+struct CasualFrameRecord {
+  int limb_node = -1;             // rig node whose subtree's pixels the mask misses, -1: none
+  int limb_pixels = 0;            // object pixels removed with it
+  int holes = 0;                  // holes punched into the mask
+  double boundary_amplitude = 0;  // largest boundary displacement, px
+};
+
 struct SynthScene {
   Dataset dataset;
-  std::vector<std::vector<TriangleMesh>> gt_meshes;  // [video][frame], camera coordinates
+  std::vector<std::vector<TriangleMesh>> gt_meshes;    // [video][frame], camera coordinates
+  std::vector<std::vector<CasualFrameRecord>> casual;  // [video][frame], realism casual only
 };
 
 // Multiplies every length of `scene` by s > 0: root-pose translations (ground
