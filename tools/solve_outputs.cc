@@ -92,7 +92,9 @@ void WriteHoldoutScore(const Model& model, const Dataset& dataset, const Holdout
                        const std::string& out_dir) {
   RenderSequenceOptions options;
   SetTrainedSampling(model, &options.frame);
-  options.frame.jitter_passes = 4;  // as banmo render: the expected rendering the losses fit
+  // One jittered pass: a quarter of banmo render's default time (4 passes);
+  // measured on DAVIS goat frame 10: IoU 0.877 against 0.878 with 4.
+  options.frame.jitter_passes = 1;
   options.frame.canonical_bounds = CanonicalBoundsFromSurface(model);
   options.mesh_resolution = 64;  // the mesh panels only
   int height = 1;
