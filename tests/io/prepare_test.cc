@@ -261,14 +261,19 @@ TEST(Prepare, RejectsMissingAndMismatchedMasks) {
   ExpectPrepareError(o, {"nothing", "not a folder"});
 }
 
-TEST(Prepare, FeaturesAreZeroOutsideTheMask) {
-  TempDir tmp;
-  const std::string root = WriteTiny(tmp.path(), {Square(0, 255), Square(0, 255), Square(0, 255)});
+// Features 0.5 everywhere for the three frames of WriteTiny.
+void WriteFeatures(const std::string& root) {
   std::filesystem::create_directories(root + "/features");
   for (int t = 0; t < 3; ++t) {
     WriteNpy(root + "/features/" + std::to_string(t) + ".npy",
              cv::Mat(24, 32 * kFeatureDim, CV_32FC1, cv::Scalar(0.5)).reshape(kFeatureDim));
   }
+}
+
+TEST(Prepare, FeaturesAreZeroOutsideTheMask) {
+  TempDir tmp;
+  const std::string root = WriteTiny(tmp.path(), {Square(0, 255), Square(0, 255), Square(0, 255)});
+  WriteFeatures(root);
   PrepareOptions o = TinyOptions(root);
   o.features_dir = root + "/features";
   const Dataset d = PrepareDataset(o);
@@ -289,11 +294,7 @@ TEST(Prepare, FeaturesAreZeroOutsideTheMask) {
 TEST(Prepare, MaxSizeScalesFramesMasksIntrinsicsAndFeatures) {
   TempDir tmp;
   const std::string root = WriteTiny(tmp.path(), {Square(0, 255), Square(0, 255), Square(0, 255)});
-  std::filesystem::create_directories(root + "/features");
-  for (int t = 0; t < 3; ++t) {
-    WriteNpy(root + "/features/" + std::to_string(t) + ".npy",
-             cv::Mat(24, 32 * kFeatureDim, CV_32FC1, cv::Scalar(0.5)).reshape(kFeatureDim));
-  }
+  WriteFeatures(root);
   PrepareOptions o = TinyOptions(root);
   o.features_dir = root + "/features";
   o.intrinsics = Eigen::Vector4d(40, 41, 16, 12);
