@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -62,18 +63,7 @@ bool AllFiniteTyped(const cv::Mat& m, cv::Vec3i* first_bad) {
 
 }  // namespace
 
-std::string ReadFileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open file");
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  if (size < 0) ThrowInputError(path, ": cannot read file");
-  in.seekg(0);
-  std::string bytes(static_cast<std::size_t>(size), '\0');
-  in.read(bytes.data(), size);
-  if (!in) ThrowInputError(path, ": read error");
-  return bytes;
-}
+std::string ReadFileBytes(const std::string& path) { return ReadRegularFile(path); }
 
 PngInfo ParsePngInfo(const std::string& bytes, const std::string& name) {
   const auto* u = reinterpret_cast<const unsigned char*>(bytes.data());
@@ -132,6 +122,7 @@ cv::Mat DecodePngStrict(const std::string& bytes, const std::string& name, int d
 }
 
 PngInfo CheckPngFile(const std::string& path, int depth, int channels, int width, int height) {
+  CheckRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) ThrowInputError(path, ": cannot open file");
   in.seekg(0, std::ios::end);

@@ -10,6 +10,7 @@
 
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 
 namespace banmo {
 
@@ -51,8 +52,7 @@ std::string FrameFileName(int index, const std::string& extension) {
 }
 
 std::vector<Pose> ReadPoseFile(const std::string& path, int expected_lines) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, ": cannot open the pose file");
+  std::istringstream in(ReadRegularFile(path, kMaxTextFileBytes, " (the pose file)"));
   std::vector<Pose> poses;
   std::string line;
   int line_number = 0;

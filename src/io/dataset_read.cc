@@ -11,6 +11,7 @@
 #include "banmo/io/dataset.h"
 #include "banmo/io/npy.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
 #include "manifest.h"
@@ -216,6 +217,7 @@ void LoadFrame(const internal::Manifest& manifest, const internal::ManifestVideo
   }
   if (mv.present.gt_mesh) {
     const std::string path = vdir + "/gt_mesh/" + FrameFileName(t, "ply");
+    CheckRegularFile(path);
     std::ifstream in(path, std::ios::binary);
     char magic[4] = {0, 0, 0, 0};
     in.read(magic, 4);

@@ -8,6 +8,7 @@
 #include <set>
 
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 
 namespace banmo::internal {
 namespace {
@@ -231,9 +232,8 @@ ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::stri
 Manifest ReadManifest(const std::string& path) {
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    ThrowInputError(path, ": cannot open the manifest (every dataset folder has one)");
+    root = YAML::Load(
+        ReadRegularFile(path, kMaxTextFileBytes, " (the manifest; every dataset folder has one)"));
   } catch (const YAML::Exception& e) {
     ThrowInputError(path, ": YAML syntax error at line ", e.mark.line + 1, ": ", e.msg);
   }

@@ -9,6 +9,7 @@
 #include "banmo/io/codecs.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -235,6 +236,7 @@ NpyHeader ParseNpyHeader(const std::string& bytes, const std::string& name) {
 }
 
 NpyHeader ReadNpyHeader(const std::string& path) {
+  CheckRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) ThrowInputError(path, ": cannot open file");
   in.seekg(0, std::ios::end);

@@ -21,6 +21,7 @@
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
 #include "banmo/util/format.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -35,11 +36,7 @@ constexpr char kWhatToDo[] =
     "; pass the folder written by banmo solve (OUT/checkpoint), or solve again to write it";
 
 std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open file", kWhatToDo);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  return ReadRegularFile(path, kMaxInputFileBytes, kWhatToDo);
 }
 
 // ---- ModelOptions as YAML (the field lists of model_options_fields.h). ----
@@ -414,7 +411,7 @@ YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, b
   }
   YAML::Node root;
   try {
-    root = YAML::LoadFile(yaml_path);
+    root = YAML::Load(ReadRegularFile(yaml_path, kMaxTextFileBytes, kWhatToDo));
   } catch (const YAML::Exception& e) {
     ThrowInputError(yaml_path, ": not valid YAML (", e.what(), "): the file is damaged", kWhatToDo);
   }

@@ -9,6 +9,7 @@
 #include "banmo/model/model_file.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -19,13 +20,7 @@ namespace {
 constexpr char kCheckpointFormat[] = "banmo-checkpoint-3";
 constexpr char kCheckpointFormatV2[] = "banmo-checkpoint-2";
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string ReadFile(const std::string& path) { return ReadRegularFile(path); }
 
 // Stage, batch and config of checkpoint.yaml, or of model.yaml in a
 // checkpoint written before the model file existed.
@@ -38,7 +33,7 @@ CheckpointInfo ReadInfo(const std::string& dir) {
   }
   CheckpointInfo info;
   try {
-    const YAML::Node root = YAML::LoadFile(path);
+    const YAML::Node root = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes));
     const std::string format = root["format"].as<std::string>();
     const bool known = format == expected_format ||
                        (expected_format == kCheckpointFormat && format == kCheckpointFormatV2);

@@ -25,6 +25,7 @@
 #include "banmo/model/model_options_fields.h"
 #include "banmo/util/error.h"
 #include "banmo/util/format.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -852,12 +853,7 @@ SamplingConfig SamplingAt(const StageConfig& stage, double fraction) {
 }
 
 SolverConfig LoadSolverConfig(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open the config file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) ThrowInputError(path, ": cannot read the config file");
-  return ParseSolverConfig(text.str(), path);
+  return ParseSolverConfig(ReadRegularFile(path, kMaxTextFileBytes, " (the config file)"), path);
 }
 
 SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& source) {

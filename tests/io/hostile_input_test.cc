@@ -1,0 +1,77 @@
+// Datasets made to break the reader (issue 66): FIFOs and devices where
+// files belong (refused by name, without blocking), duplicate keys and
+// absurd values in manifest.yaml, sizes beyond the documented limits.
+// Loads that could block run in a child process with a time limit.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <string>
+
+#include "../common/timeout.h"
+#include "banmo/geometry/mesh_io.h"
+#include "banmo/io/dataset.h"
+#include "banmo/util/error.h"
+#include "test_dataset_util.h"
+
+namespace banmo {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::MakeGtMeshes;
+using testing::MakeSmallDataset;
+using testing::ReadText;
+using testing::TempDir;
+using testing::WriteText;
+
+LoadOptions LoadAll() {
+  LoadOptions o;
+  o.load_depth = true;
+  return o;
+}
+
+std::string WriteValid(const TempDir& tmp) {
+  const std::string dir = tmp.path() + "/ds";
+  const Dataset d = MakeSmallDataset();
+  const auto meshes = MakeGtMeshes(d);
+  WriteDataset(d, dir, WriteOptions(), &meshes);
+  return dir;
+}
+
+// The message of LoadDataset(dir)'s InputError, run with a time limit.
+std::string TimedLoadError(const std::string& dir) {
+  const auto r = testing::ErrorOfWithTimeout([&] { LoadDataset(dir, LoadAll()); });
+  EXPECT_TRUE(r.finished) << "LoadDataset(" << dir << ") hung";
+  return r.message;
+}
+
+TEST(HostileDataset, FifosAreRefusedByNameWithoutBlocking) {
+  for (const std::string file :
+       {"manifest.yaml", "video0/rgb/00001.png", "video0/mask/00002.png",
+        "video1/root_poses_init.txt", "video1/root_poses_gt.txt", "video0/flow/fw_1/00000.png",
+        "video0/features/00003.npy", "video1/depth/00000.png", "video1/gt_mesh/00004.ply"}) {
+    TempDir tmp;
+    const std::string dir = WriteValid(tmp);
+    const std::string path = dir + "/" + file;
+    ASSERT_TRUE(fs::exists(path)) << path;
+    fs::remove(path);
+    ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
+    const std::string error = TimedLoadError(dir);
+    EXPECT_NE(error.find(file), std::string::npos) << file << ": " << error;
+    EXPECT_NE(error.find("FIFO"), std::string::npos) << file << ": " << error;
+  }
+}
+
+TEST(HostileDataset, DevZeroAsPoseFileIsRefusedBeforeReading) {
+  TempDir tmp;
+  const std::string dir = WriteValid(tmp);
+  const std::string path = dir + "/video0/root_poses_init.txt";
+  fs::remove(path);
+  fs::create_symlink("/dev/zero", path);
+  const std::string error = TimedLoadError(dir);
+  EXPECT_NE(error.find("video0/root_poses_init.txt: is a character device"), std::string::npos)
+      << error;
+}
+
+}  // namespace
+}  // namespace banmo
