@@ -73,5 +73,16 @@ TEST(HostileDataset, DevZeroAsPoseFileIsRefusedBeforeReading) {
       << error;
 }
 
+TEST(HostileDataset, HugeRootPoseTranslationIsRefusedByLine) {
+  TempDir tmp;
+  const std::string dir = WriteValid(tmp);
+  const std::string path = dir + "/video0/root_poses_init.txt";
+  WriteText(path, "1 0 0 0 0 0 1e308\n" + ReadText(path).substr(ReadText(path).find('\n') + 1));
+  const std::string error = TimedLoadError(dir);
+  EXPECT_NE(error.find("video0/root_poses_init.txt:1: translation (tx ty tz) beyond"),
+            std::string::npos)
+      << error;
+}
+
 }  // namespace
 }  // namespace banmo
