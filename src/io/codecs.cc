@@ -74,8 +74,14 @@ PngInfo ParsePngInfo(const std::string& bytes, const std::string& name) {
     ThrowInputError(name, ": corrupt PNG (first chunk is not IHDR)");
   }
   PngInfo info;
-  info.width = static_cast<int>(ReadBigEndian32(u + 16));
-  info.height = static_cast<int>(ReadBigEndian32(u + 20));
+  const std::uint32_t width = ReadBigEndian32(u + 16), height = ReadBigEndian32(u + 20);
+  if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide ||
+      static_cast<long>(width) * height > kMaxFramePixels) {
+    ThrowInputError(name, ": PNG of ", width, "x", height, " pixels is beyond the limit (sides 1..",
+                    kMaxImageSide, ", at most ", kMaxFramePixels, " pixels)");
+  }
+  info.width = static_cast<int>(width);
+  info.height = static_cast<int>(height);
   info.bit_depth = u[24];
   switch (u[25]) {
     case 0:

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <set>
 
+#include "banmo/io/codecs.h"
 #include "banmo/util/error.h"
 #include "banmo/util/input_file.h"
 
@@ -202,9 +203,11 @@ ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::stri
     ThrowInputError(Where(path, v["frames"]), ": ", vctx, ".frames = ", mv.frames,
                     ", expected 1..100000");
   }
-  if (mv.width <= 0 || mv.height <= 0 || mv.width > 32768 || mv.height > 32768) {
+  if (mv.width <= 0 || mv.height <= 0 || mv.width > kMaxImageSide || mv.height > kMaxImageSide ||
+      static_cast<long>(mv.width) * mv.height > kMaxFramePixels) {
     ThrowInputError(Where(path, v), ": ", vctx, ": image size ", mv.width, "x", mv.height,
-                    " is not in 1..32768");
+                    " is beyond the limit (width and height in 1..", kMaxImageSide, ", at most ",
+                    kMaxFramePixels, " pixels; docs/robustness.md)");
   }
   const YAML::Node k = Required(v, "intrinsics", path, vctx);
   if (!k.IsSequence() || k.size() != 4) {
@@ -248,8 +251,16 @@ Manifest ReadManifest(const std::string& path) {
     ThrowInputError(Where(path, videos), ": key 'videos': expected a non-empty list");
   }
   std::set<std::string> names;
+  long pixels = 0;
   for (std::size_t i = 0; i < videos.size(); ++i) {
     m.videos.push_back(ReadVideoEntry(videos[i], i, path, m, &names));
+    const ManifestVideo& mv = m.videos.back();
+    pixels += static_cast<long>(mv.frames) * mv.width * mv.height;
+    if (pixels > kMaxDatasetPixels) {
+      ThrowInputError(Where(path, videos[i]), ": key 'videos': ", i + 1, " video(s) declare ",
+                      pixels, " pixels (frames x width x height), beyond the limit of ",
+                      kMaxDatasetPixels, " per dataset (docs/robustness.md)");
+    }
   }
   return m;
 }

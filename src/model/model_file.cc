@@ -481,11 +481,12 @@ void ReadOptions(const std::string& yaml_path, const YAML::Node& root, ModelOpti
     if (s["min_sdf_sample"].IsDefined()) {
       ReadRequired(source, s, "min_sdf_sample", &t.min_sdf_sample);
     }
-    if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0) || !(t.clip_margin >= 0) ||
-        t.importance_samples < 0) {
+    // 1024: the stage configuration's limit (docs/robustness.md).
+    if (t.samples_per_ray <= 0 || t.samples_per_ray > 1024 || !(t.near_far_margin >= 0) ||
+        !(t.clip_margin >= 0) || t.importance_samples < 0 || t.importance_samples > 1024) {
       ThrowInputError(yaml_path,
-                      ": key 'training_sampling': expected samples_per_ray > 0, "
-                      "near_far_margin >= 0, clip_margin >= 0 and importance_samples >= 0",
+                      ": key 'training_sampling': expected samples_per_ray in [1, 1024], "
+                      "near_far_margin >= 0, clip_margin >= 0 and importance_samples in [0, 1024]",
                       kWhatToDo);
     }
     *sampling = t;
@@ -508,8 +509,13 @@ void ReadVideos(const std::string& yaml_path, const YAML::Node& root, std::vecto
     ReadRequired(source, videos[v], "height", &cam.height);
     std::vector<double> k;
     ReadRequired(source, videos[v], "intrinsics", &k);
-    if (count < 0 || cam.width <= 0 || cam.height <= 0 || k.size() != 4) {
-      ThrowInputError(source, ": expected frames >= 0, width and height > 0 and 4 intrinsics",
+    // The dataset format's limits (docs/robustness.md): 100000 frames per
+    // video, sides of at most 16384 px.
+    if (count < 0 || count > 100000 || cam.width <= 0 || cam.height <= 0 || cam.width > 16384 ||
+        cam.height > 16384 || k.size() != 4) {
+      ThrowInputError(source,
+                      ": expected frames in [0, 100000], width and height in [1, 16384] and 4 "
+                      "intrinsics",
                       kWhatToDo);
     }
     for (int i = 0; i < 4; ++i) cam.intrinsics[i] = k[i];

@@ -10,6 +10,7 @@
 
 #include "../common/timeout.h"
 #include "banmo/geometry/mesh_io.h"
+#include "banmo/io/codecs.h"
 #include "banmo/io/dataset.h"
 #include "banmo/util/error.h"
 #include "test_dataset_util.h"
@@ -80,6 +81,58 @@ TEST(HostileDataset, HugeRootPoseTranslationIsRefusedByLine) {
   WriteText(path, "1 0 0 0 0 0 1e308\n" + ReadText(path).substr(ReadText(path).find('\n') + 1));
   const std::string error = TimedLoadError(dir);
   EXPECT_NE(error.find("video0/root_poses_init.txt:1: translation (tx ty tz) beyond"),
+            std::string::npos)
+      << error;
+}
+
+// A 2-frame dataset declaring 32768 x 32768 frames (once 6-7 GB and
+// std::bad_alloc): refused from the manifest, before any image is decoded.
+TEST(HostileDataset, DeclaredSizesBeyondTheLimitsAreRefusedByKey) {
+  TempDir tmp;
+  const std::string dir = WriteValid(tmp);
+  const std::string manifest = dir + "/manifest.yaml";
+  const std::string text = ReadText(manifest);
+  auto with = [&](const std::string& from, const std::string& to) {
+    std::string t = text;
+    for (std::size_t at = t.find(from); at != std::string::npos; at = t.find(from, at + 1)) {
+      t.replace(at, from.size(), to);
+    }
+    return t;
+  };
+  ASSERT_NE(text.find("width: 24"), std::string::npos) << text;
+  WriteText(manifest, with("width: 24", "width: 32768"));
+  std::string error = TimedLoadError(dir);
+  EXPECT_NE(error.find("manifest.yaml"), std::string::npos) << error;
+  EXPECT_NE(error.find("image size 32768x20 is beyond the limit"), std::string::npos) << error;
+  const std::string wide = with("width: 24", "width: 16000");
+  std::string tall = wide;
+  for (std::size_t at = tall.find("height: 20"); at != std::string::npos;
+       at = tall.find("height: 20", at + 1)) {
+    tall.replace(at, 10, "height: 16000");
+  }
+  WriteText(manifest, tall);
+  error = TimedLoadError(dir);
+  EXPECT_NE(error.find("16000x16000 is beyond the limit"), std::string::npos) << error;
+  // Sizes within the per-frame limit, too many pixels over the dataset.
+  std::string many = with("frames: 5", "frames: 100000");
+  for (std::size_t at = many.find("width: 24"); at != std::string::npos;
+       at = many.find("width: 24", at + 1)) {
+    many.replace(at, 9, "width: 2400");
+  }
+  WriteText(manifest, many);
+  error = TimedLoadError(dir);
+  EXPECT_NE(error.find("key 'videos': 1 video(s) declare"), std::string::npos) << error;
+}
+
+TEST(HostileDataset, PngHeaderBeyondTheLimitsIsRefusedBeforeDecoding) {
+  // Signature and an IHDR of 100000 x 100000 (nothing else: never decoded).
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  const unsigned char ihdr[] = {0,    0, 0, 13,   'I',  'H', 'D', 'R', 0, 1, 0x86,
+                                0xa0, 0, 1, 0x86, 0xa0, 8,   2,   0,   0, 0};
+  png.append(reinterpret_cast<const char*>(ihdr), sizeof(ihdr));
+  const std::string error =
+      testing::ErrorOfWithTimeout([&] { ParsePngInfo(png, "big.png"); }).message;
+  EXPECT_NE(error.find("big.png: PNG of 100000x100000 pixels is beyond the limit"),
             std::string::npos)
       << error;
 }

@@ -1,8 +1,9 @@
 // The solver's divergence guard (issue 66): a learning rate of 1e300 or a
-// loss weight of 1e308 ends with exit 2, a message naming the stage, the
-// batch and what blew up, and a checkpoint that resumes; a moderate
-// divergence (lr 1) is reported; non-finite near/far planes are an error,
-// not an abort. Tiny solves (16 rays, 4 samples): seconds.
+// loss weight of 1e308 (in-process: config files refuse them by key) ends
+// with a DivergenceError naming the stage, the batch and what blew up, and
+// a checkpoint that resumes; a moderate divergence (lr 1) is reported;
+// non-finite near/far planes are an error, not an abort. Configuration
+// limits are refused by key. Tiny solves: seconds.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,8 +15,12 @@
 
 #include "../common/input_error.h"
 #include "../common/run_banmo.h"
+#include "banmo/model/make_model.h"
+#include "banmo/optim/config.h"
+#include "banmo/optim/solver.h"
 #include "banmo/util/error.h"
 #include "banmo/volume/volume_rendering.h"
+#include "tiny_solver_scene.h"
 
 namespace banmo {
 namespace {
@@ -56,43 +61,75 @@ class DivergenceGuard : public ::testing::Test {
 
 std::string DivergenceGuard::dir_;
 
+// The message of the DivergenceError a tiny in-process solve (the config
+// bypasses the file checks, as a library caller may) throws; "" if none.
+std::string SolveError(const SolverConfig& config, const std::string& out_dir,
+                       bool resume = false) {
+  const Dataset& data = testing::TinyQuadrupedDataset();
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  SolveOptions options;
+  options.quiet = true;
+  options.out_dir = out_dir;
+  options.resume = resume;
+  try {
+    solver.Run(options);
+  } catch (const DivergenceError& e) {
+    return e.what();
+  }
+  return "";
+}
+
 TEST_F(DivergenceGuard, HugeLearningRateStopsWithTheStageBatchAndBlock) {
-  const auto r = Solve("lr", ", adam: {lr: 1.0e300}", "");
-  EXPECT_EQ(r.exit_code, 2) << r.out;
-  EXPECT_EQ(r.out.find("Check failed"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("the solve diverged in stage 'one' (1/1), batch "), std::string::npos)
-      << r.out;
-  EXPECT_NE(r.out.find("left the parameter block '"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("holds the state the run started from"), std::string::npos) << r.out;
+  SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 6);
+  config.stages[0].adam.lr = 1e300;
+  const std::string out = dir_ + "/lr";
+  fs::remove_all(out);
+  const std::string error = SolveError(config, out);
+  EXPECT_NE(error.find("the solve diverged in stage 'tiny' (1/1), batch "), std::string::npos)
+      << error;
+  EXPECT_NE(error.find("left the parameter block '"), std::string::npos) << error;
+  EXPECT_NE(error.find("holds the state the run started from"), std::string::npos) << error;
   // The checkpoint is the run's start and resumes (diverging again, cleanly).
-  const std::string checkpoint = Read(dir_ + "/lr/checkpoint/checkpoint.yaml");
+  const std::string checkpoint = Read(out + "/checkpoint/checkpoint.yaml");
   EXPECT_NE(checkpoint.find("stage: 0\nbatch: 0\n"), std::string::npos) << checkpoint;
-  const auto resumed = Solve("lr", ", adam: {lr: 1.0e300}", "", "--resume");
-  EXPECT_EQ(resumed.exit_code, 2) << resumed.out;
-  EXPECT_NE(resumed.out.find("holds the last good state"), std::string::npos) << resumed.out;
+  const std::string resumed = SolveError(config, out, /*resume=*/true);
+  EXPECT_NE(resumed.find("holds the last good state"), std::string::npos) << resumed;
 }
 
 TEST_F(DivergenceGuard, HugeLossWeightIsNamed) {
-  const auto r = Solve("weight", "", ", losses: {rgb: {weight: 1.0e308}}");
-  EXPECT_EQ(r.exit_code, 2) << r.out;
-  EXPECT_NE(r.out.find("the solve diverged in stage 'one'"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("losses.rgb.weight 1e+308"), std::string::npos) << r.out;
+  SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 6);
+  config.stages[0].losses[LossTerm::kRgb].weight = 1e308;
+  const std::string error = SolveError(config, "");
+  EXPECT_NE(error.find("the solve diverged in stage 'tiny'"), std::string::npos) << error;
+  EXPECT_NE(error.find("losses.rgb.weight 1e+308"), std::string::npos) << error;
+  EXPECT_NE(error.find("Nothing was written (no --out)"), std::string::npos) << error;
 }
 
 TEST_F(DivergenceGuard, AfterACheckpointTheCheckpointIsTheLastGoodState) {
   // A tame stage (its end writes a checkpoint), then one at lr 1e300.
-  std::ofstream(dir_ + "/two.yaml")
-      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
-      << "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
-      << "stages: [{name: tame, batches: 2}, {name: wild, batches: 4, adam: {lr: 1.0e300}}]\n";
-  const auto r = testing::RunBanmo("solve --data " + dir_ + "/data --config " + dir_ +
-                                   "/two.yaml --out " + dir_ + "/two --no-extract --no-eval");
-  EXPECT_EQ(r.exit_code, 2) << r.out;
-  EXPECT_NE(r.out.find("the solve diverged in stage 'wild' (2/2), batch 1/4"), std::string::npos)
-      << r.out;
-  EXPECT_NE(r.out.find("holds the last good state"), std::string::npos) << r.out;
-  const std::string checkpoint = Read(dir_ + "/two/checkpoint/checkpoint.yaml");
+  SolverConfig config = testing::TinySolverConfig(StepRule::kAdam, 2);
+  StageConfig wild = config.stages[0];
+  wild.name = "wild";
+  wild.batches = 4;
+  wild.adam.lr = 1e300;
+  config.stages.push_back(wild);
+  const std::string out = dir_ + "/two";
+  fs::remove_all(out);
+  const std::string error = SolveError(config, out);
+  EXPECT_NE(error.find("the solve diverged in stage 'wild' (2/2), batch 1/4"), std::string::npos)
+      << error;
+  EXPECT_NE(error.find("holds the last good state"), std::string::npos) << error;
+  const std::string checkpoint = Read(out + "/checkpoint/checkpoint.yaml");
   EXPECT_NE(checkpoint.find("stage: 1\nbatch: 0\n"), std::string::npos) << checkpoint;
+}
+
+TEST_F(DivergenceGuard, HugeLearningRateInAConfigFileIsRefusedByKey) {
+  const auto r = Solve("lr", ", adam: {lr: 1.0e300}", "");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_EQ(r.out.find("Check failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("lr.yaml: stages[0].adam.lr: expected a number in (0, 100]"),
+            std::string::npos)
+      << r.out;
 }
 
 TEST_F(DivergenceGuard, ModerateDivergenceIsReported) {
@@ -103,6 +140,35 @@ TEST_F(DivergenceGuard, ModerateDivergenceIsReported) {
   const auto calm = Solve("calm", "", "");
   EXPECT_EQ(calm.exit_code, 0) << calm.out;
   EXPECT_EQ(calm.out.find("may be diverging"), std::string::npos) << calm.out;
+}
+
+// Configuration limits (docs/robustness.md): each refused naming its key.
+TEST(ConfigLimits, ValuesBeyondTheLimitsAreRefusedByKey) {
+  const std::string head = "stages: [{name: s, batches: 1";
+  const struct {
+    std::string stage;
+    const char* expect;
+  } cases[] = {
+      {", samples_per_ray: 100000", "stages[0].samples_per_ray: expected an integer in [1, 1024]"},
+      {", batch_rays: 100000000", "stages[0].batch_rays: expected an integer in [1, 65536]"},
+      {", batch_rays: 65536, samples_per_ray: 1024",
+       "stages[0].batch_rays: batch_rays x (samples_per_ray + sampling.importance_samples)"},
+      {", adam: {lr: 1.0e300}", "stages[0].adam.lr: expected a number in (0, 100]"},
+      {", losses: {rgb: {weight: 1.0e308}}", "stages[0].losses.rgb.weight: expected at most"},
+      {", sampling: {eikonal_points: 2000000000}", "stages[0].sampling.eikonal_points"},
+  };
+  for (const auto& c : cases) {
+    const std::string error =
+        testing::ErrorOf([&] { ParseSolverConfig(head + c.stage + "}]\n", "limits.yaml"); });
+    EXPECT_NE(error.find("limits.yaml"), std::string::npos) << c.stage << ": " << error;
+    EXPECT_NE(error.find(c.expect), std::string::npos) << c.stage << ": " << error;
+  }
+  const std::string bands = testing::ErrorOf([] {
+    ParseSolverConfig("model: {field: {position_encoding: {num_bands: 1000}}}\n" +
+                          std::string("stages: [{name: s, batches: 1}]\n"),
+                      "bands.yaml");
+  });
+  EXPECT_NE(bands.find("num_bands must be in [0, 32], got 1000"), std::string::npos) << bands;
 }
 
 TEST(StratifiedSamples, NonFinitePlanesAreADivergenceErrorNotAnAbort) {
