@@ -215,9 +215,24 @@ Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> CanonicalColors(const Model& mode
   return colors;
 }
 
+namespace {
+
+// color_video must name one of the model's videos (or -1).
+void CheckColorVideo(const Model& model, const ExtractOptions& options) {
+  if (options.color_video >= model.num_videos()) {
+    ThrowInputError("extract.color_video (--color-video): video ", options.color_video,
+                    " does not exist: the model has ", model.num_videos(),
+                    " video(s) (expected -1 for no appearance code, or 0..", model.num_videos() - 1,
+                    ")");
+  }
+}
+
+}  // namespace
+
 TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options,
                                   MarchingCubesStats* stats) {
   options.Check();
+  CheckColorVideo(model, options);
   TriangleMesh mesh = MarchingCubes(ModelSdfFunction(model), options.grid, stats);
   mesh = KeepLargeComponents(mesh, options.min_component_fraction);
   if (mesh.NumVertices() > 0)
@@ -364,6 +379,7 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
                                   const std::string& out_dir,
                                   const std::function<void(int done, int total)>& progress) {
   options.Check();
+  CheckColorVideo(model, options);
   std::vector<std::pair<int, int>> frames;
   if (options.frames.all) {
     for (int v = 0; v < model.num_videos(); ++v) {

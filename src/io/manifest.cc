@@ -27,8 +27,13 @@ std::string Where(const std::string& path, const YAML::Node& node) {
 void CheckKeys(const YAML::Node& map, const std::string& path, const std::string& context,
                const std::set<std::string>& allowed) {
   if (!map.IsMap()) ThrowInputError(Where(path, map), ": ", context, " must be a mapping");
+  std::set<std::string> seen;
   for (const auto& kv : map) {
     const std::string key = kv.first.Scalar();
+    if (!seen.insert(key).second) {
+      // yaml-cpp keeps the first of repeated keys; which one was meant is unknown.
+      ThrowInputError(Where(path, kv.first), ": duplicate key '", key, "' in ", context);
+    }
     if (allowed.count(key) == 0) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
@@ -142,8 +147,11 @@ void ReadHeader(const YAML::Node& root, const std::string& path, Manifest* m) {
   if (root["depth_encoding"]) m->depth_encoding = ReadDepthEncoding(root["depth_encoding"], path);
   if (root["depth_unit"]) {
     m->depth_unit = As<double>(root["depth_unit"], path, "depth_unit", "a positive number");
-    if (!(std::isfinite(m->depth_unit) && m->depth_unit > 0)) {
-      ThrowInputError(path, ": key 'depth_unit' must be a positive finite number");
+    // 1e-9 .. 1e3 per step of a 16-bit PNG: nanometres to a 65 km range.
+    if (!(m->depth_unit >= 1e-9 && m->depth_unit <= 1e3)) {
+      ThrowInputError(path, ": key 'depth_unit' is ", m->depth_unit,
+                      ", expected a number in [1e-9, 1e3] (scene units per step of a 16-bit "
+                      "depth PNG)");
     }
   }
 }

@@ -248,6 +248,25 @@ class OptionsReader {
 bool IsMap(const YAML::Node& node) { return node.IsDefined() && node.IsMap(); }
 bool IsSequence(const YAML::Node& node) { return node.IsDefined() && node.IsSequence(); }
 
+// An unknown or repeated key of `map` (written by a newer banmo, or a typo)
+// is an error naming the file and the key: it would otherwise be ignored.
+void CheckKnownKeys(const std::string& source, const std::string& path, const YAML::Node& map,
+                    const std::set<std::string>& known) {
+  std::set<std::string> seen;
+  for (const auto& kv : map) {
+    const std::string key = kv.first.Scalar();
+    if (!known.count(key)) {
+      ThrowInputError(source, ": unknown key '", path, key,
+                      "' (the file is damaged or from "
+                      "another banmo)",
+                      kWhatToDo);
+    }
+    if (!seen.insert(key).second) {
+      ThrowInputError(source, ": duplicate key '", path, key, "' (the file is damaged)", kWhatToDo);
+    }
+  }
+}
+
 // Reads node[key] into *value when the key is present (path names it).
 template <class T>
 void ReadOptional(const std::string& source, const std::string& path, const YAML::Node& node,
@@ -428,6 +447,26 @@ YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, b
     ThrowInputError(yaml_path, ": unknown model format '", format, "' (this banmo reads ",
                     kModelFileFormat, " and ", kLegacyCheckpointFormat,
                     "); read it with the banmo that wrote it, or solve again with this one");
+  }
+  if (!*legacy) {
+    CheckKnownKeys(yaml_path, "", root,
+                   {"format", "parameters", "scene_scale", "canonical_origin", "options",
+                    "canonical_bounds", "training_sampling", "root_correction", "videos"});
+    if (IsMap(root["training_sampling"])) {
+      CheckKnownKeys(yaml_path, "training_sampling.", root["training_sampling"],
+                     {"samples_per_ray", "near_far_margin", "importance_depth", "clip_to_box",
+                      "clip_margin", "importance_samples", "min_sdf_sample"});
+    }
+    if (IsMap(root["canonical_bounds"])) {
+      CheckKnownKeys(yaml_path, "canonical_bounds.", root["canonical_bounds"], {"min", "max"});
+    }
+    if (root["videos"].IsSequence()) {
+      for (std::size_t v = 0; v < root["videos"].size(); ++v) {
+        if (!IsMap(root["videos"][v])) continue;
+        CheckKnownKeys(yaml_path, "videos[" + std::to_string(v) + "].", root["videos"][v],
+                       {"frames", "width", "height", "intrinsics"});
+      }
+    }
   }
   return root;
 }

@@ -1,5 +1,6 @@
 #include "divergence_guard.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -66,6 +67,25 @@ void CheckFiniteAfterBatch(const TermLosses& losses, Model& model,
   }
   if (!bounds.min().allFinite() || !bounds.max().allFinite()) {
     ThrowDivergenceError("the canonical bounds are not finite");
+  }
+}
+
+void CheckFlowGaps(const SolverConfig& config, const Dataset& dataset) {
+  if (dataset.flow_gaps.empty()) return;
+  for (std::size_t s = 0; s < config.stages.size(); ++s) {
+    const StageConfig& stage = config.stages[s];
+    if (!(stage.losses[LossTerm::kFlow].weight > 0)) continue;
+    for (int gap : stage.sampling.flow_gaps) {
+      if (std::find(dataset.flow_gaps.begin(), dataset.flow_gaps.end(), gap) !=
+          dataset.flow_gaps.end()) {
+        continue;
+      }
+      std::ostringstream have;
+      for (int g : dataset.flow_gaps) have << (have.tellp() > 0 ? ", " : "") << g;
+      ThrowInputError("stages[", s, "] ('", stage.name, "').sampling.flow_gaps: gap ", gap,
+                      " is not in the dataset, which has flow for gaps [", have.str(),
+                      "] (its flow term would silently vanish)");
+    }
   }
 }
 

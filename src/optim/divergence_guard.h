@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <string>
 
+#include "banmo/io/dataset.h"
 #include "banmo/model/model.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/solver.h"
@@ -30,6 +31,11 @@ void CheckFiniteAfterBatch(const TermLosses& losses, Model& model,
 // goes on: losses may rise when a schedule switches terms on.
 inline constexpr double kLossRiseFactor = 1000.0;
 bool LossRoseSharply(const TermLosses& losses, double* first_total);
+
+// Throws InputError naming stages[i].sampling.flow_gaps if a stage with a
+// flow loss asks for a gap the dataset does not have (its flow term would
+// silently vanish); datasets without any flow are left alone.
+void CheckFlowGaps(const SolverConfig& config, const Dataset& dataset);
 
 // The message of a DivergenceError raised in stage `stage_index` (0-based)
 // at `batch` (0-based) with `what`, and where the last good state is.

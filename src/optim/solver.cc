@@ -84,7 +84,21 @@ SolveResult Solver::Run(const SolveOptions& options) {
     if (bytes.empty()) ThrowInputError(options.out_dir, "/checkpoint: no solver state to resume");
     state.Deserialize(bytes);
     bounds_ = state.bounds;
+    // stage == number of stages: every stage done (the final checkpoint).
+    const int stages = static_cast<int>(config_.stages.size());
+    for (const auto& [stage, batch] :
+         {std::pair(info.stage, info.batch), std::pair(state.stage, state.batch)}) {
+      if (stage < 0 || stage > stages || batch < 0 ||
+          (stage < stages && batch >= config_.stages[stage].batches) ||
+          (stage == stages && batch != 0)) {
+        ThrowInputError(options.out_dir, "/checkpoint: stage ", stage, ", batch ", batch,
+                        " is out of range for the config's ", stages,
+                        " stage(s) (checkpoint.yaml or state.bin is damaged, or from another "
+                        "config)");
+      }
+    }
   }
+  internal::CheckFlowGaps(config_, dataset_);
   // The model records how it is trained (saved with it, model/model_file.h).
   if (!config_.stages.empty()) {
     const StageConfig& last = config_.stages.back();

@@ -124,6 +124,36 @@ TEST(HostileDataset, DeclaredSizesBeyondTheLimitsAreRefusedByKey) {
   EXPECT_NE(error.find("key 'videos': 1 video(s) declare"), std::string::npos) << error;
 }
 
+TEST(HostileDataset, DuplicateKeysAndAbsurdDepthUnitAreRefused) {
+  TempDir tmp;
+  const std::string dir = WriteValid(tmp);
+  const std::string manifest = dir + "/manifest.yaml";
+  const std::string text = ReadText(manifest);
+  // A second 'feature_dim' (yaml-cpp would keep the first silently).
+  WriteText(manifest, text + "feature_dim: 16\n");
+  std::string error = TimedLoadError(dir);
+  EXPECT_NE(error.find("manifest.yaml"), std::string::npos) << error;
+  EXPECT_NE(error.find("duplicate key 'feature_dim' in the manifest"), std::string::npos) << error;
+  // Inside a video entry.
+  const std::size_t frames = text.find("    frames: ");
+  ASSERT_NE(frames, std::string::npos) << text;
+  std::string video = text;
+  video.insert(frames, "    frames: 3\n");
+  WriteText(manifest, video);
+  error = TimedLoadError(dir);
+  EXPECT_NE(error.find("duplicate key 'frames' in videos[0]"), std::string::npos) << error;
+  // depth_unit 1e308.
+  const std::size_t unit = text.find("depth_unit: ");
+  ASSERT_NE(unit, std::string::npos) << text;
+  std::string depth = text;
+  depth.replace(unit, text.find('\n', unit) - unit, "depth_unit: 1e308");
+  WriteText(manifest, depth);
+  error = TimedLoadError(dir);
+  EXPECT_NE(error.find("key 'depth_unit' is 1e+308, expected a number in [1e-9, 1e3]"),
+            std::string::npos)
+      << error;
+}
+
 TEST(HostileDataset, PngHeaderBeyondTheLimitsIsRefusedBeforeDecoding) {
   // Signature and an IHDR of 100000 x 100000 (nothing else: never decoded).
   std::string png("\x89PNG\r\n\x1a\n", 8);

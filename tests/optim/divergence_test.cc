@@ -142,6 +142,56 @@ TEST_F(DivergenceGuard, ModerateDivergenceIsReported) {
   EXPECT_EQ(calm.out.find("may be diverging"), std::string::npos) << calm.out;
 }
 
+// Garbage once accepted silently, each now refused naming the key.
+TEST_F(DivergenceGuard, GarbageArgumentsAndCheckpointsAreRefusedByKey) {
+  // A flow gap the dataset (gaps [1]) does not have.
+  auto r = Solve("gap", "", ", losses: {flow: {weight: 1}}, sampling: {flow_gaps: [1, 8]}");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("stages[0] ('one').sampling.flow_gaps: gap 8 is not in the dataset"),
+            std::string::npos)
+      << r.out;
+  // --threads -5.
+  r = Solve("threads", "", "", "--threads -5");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--threads: expected >= 0"), std::string::npos) << r.out;
+  // A valid solve, then garbage in its outputs.
+  r = Solve("ok", "", "", "--stop-after-batches 2");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const std::string checkpoint = dir_ + "/ok/checkpoint";
+  const std::string yaml = Read(checkpoint + "/checkpoint.yaml");
+  // stage 7 of a 1-stage config.
+  std::string bad = yaml;
+  bad.replace(bad.find("stage: 0"), 8, "stage: 7");
+  std::ofstream(checkpoint + "/checkpoint.yaml") << bad;
+  r = Solve("ok", "", "", "--resume");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("/checkpoint: stage 7, batch 2 is out of range for the config's 1 stage"),
+            std::string::npos)
+      << r.out;
+  // batch 6 of a 6-batch stage.
+  bad = yaml;
+  bad.replace(bad.find("batch: 2"), 8, "batch: 6");
+  std::ofstream(checkpoint + "/checkpoint.yaml") << bad;
+  r = Solve("ok", "", "", "--resume");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("stage 0, batch 6 is out of range"), std::string::npos) << r.out;
+  std::ofstream(checkpoint + "/checkpoint.yaml") << yaml;
+  // An unknown key in model.yaml.
+  const std::string model = Read(checkpoint + "/model.yaml");
+  std::ofstream(checkpoint + "/model.yaml") << model << "surprise: 1\n";
+  r = testing::RunBanmo("extract --model " + checkpoint + " --out " + dir_ + "/meshes");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("model.yaml: unknown key 'surprise'"), std::string::npos) << r.out;
+  std::ofstream(checkpoint + "/model.yaml") << model;
+  // --color-video 99 of a 1-video model.
+  r = testing::RunBanmo("extract --model " + checkpoint + " --color-video 99 --out " + dir_ +
+                        "/meshes");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--color-video): video 99 does not exist: the model has 1 video(s)"),
+            std::string::npos)
+      << r.out;
+}
+
 // Configuration limits (docs/robustness.md): each refused naming its key.
 TEST(ConfigLimits, ValuesBeyondTheLimitsAreRefusedByKey) {
   const std::string head = "stages: [{name: s, batches: 1";
