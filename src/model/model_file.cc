@@ -19,6 +19,7 @@
 #include "banmo/geometry/box.h"
 #include "banmo/model/model_options_fields.h"
 #include "banmo/util/atomic_file.h"
+#include "banmo/util/checksum.h"
 #include "banmo/util/error.h"
 #include "banmo/util/format.h"
 #include "banmo/util/input_file.h"
@@ -343,12 +344,14 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
   params.append(reinterpret_cast<const char*>(&count), sizeof(count));
   params += values;
   WriteFileAtomic(dir + "/params.bin", params);
+  const std::string params_checksum = ContentChecksum(params);
 
   ModelOptions options = model.options();  // the field lists take non-const references
   YAML::Emitter out;
   out << YAML::BeginMap;
   out << YAML::Key << "format" << YAML::Value << kModelFileFormat;
   out << YAML::Key << "parameters" << YAML::Value << count;
+  out << YAML::Key << "params_checksum" << YAML::Value << params_checksum;
   out << YAML::Key << "scene_scale" << YAML::Value << FormatDouble(model.scene_scale());
   out << YAML::Key << "canonical_origin" << YAML::Value;
   WriteVector3(out, model.canonical_origin());
@@ -449,9 +452,10 @@ YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, b
                     "); read it with the banmo that wrote it, or solve again with this one");
   }
   if (!*legacy) {
-    CheckKnownKeys(yaml_path, "", root,
-                   {"format", "parameters", "scene_scale", "canonical_origin", "options",
-                    "canonical_bounds", "training_sampling", "root_correction", "videos"});
+    CheckKnownKeys(
+        yaml_path, "", root,
+        {"format", "parameters", "params_checksum", "scene_scale", "canonical_origin", "options",
+         "canonical_bounds", "training_sampling", "root_correction", "videos"});
     if (IsMap(root["training_sampling"])) {
       CheckKnownKeys(yaml_path, "training_sampling.", root["training_sampling"],
                      {"samples_per_ray", "near_far_margin", "importance_depth", "clip_to_box",
@@ -566,7 +570,7 @@ void ReadVideos(const std::string& yaml_path, const YAML::Node& root, std::vecto
 // params.bin of `dir` into the model's blocks, after checking its magic and
 // that its value count is `expected_count` (model.yaml's) and the model's.
 void ReadParameters(const std::string& dir, const std::string& yaml_path, uint64_t expected_count,
-                    Model* model) {
+                    const std::string& checksum, Model* model) {
   const std::string params_path = dir + "/params.bin";
   const std::string params = ReadFile(params_path);
   uint64_t count = 0;
@@ -582,6 +586,15 @@ void ReadParameters(const std::string& dir, const std::string& yaml_path, uint64
     ThrowInputError(params_path, ": holds ", count, " values (", params.size(),
                     " bytes), expected ", model_count, " for the model in ", yaml_path,
                     " (the files are damaged or from different saves)", kWhatToDo);
+  }
+  // After the structural checks (their messages say more). Files written before the checksum
+  // existed have none (and are accepted).
+  if (!checksum.empty()) {
+    try {
+      VerifyChecksum(params_path, params, checksum, yaml_path, "params_checksum");
+    } catch (const InputError& e) {
+      ThrowInputError(e.what(), kWhatToDo);
+    }
   }
   const char* p = params.data() + sizeof(kMagic) + sizeof(count);
   model->ForEachBlock([&](const std::string&, double* data, int size) {
@@ -619,6 +632,8 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   }
   uint64_t expected_count = 0;
   ReadRequired(yaml_path, root, "parameters", &expected_count);
+  std::string params_checksum;
+  if (!legacy) ReadOptional(yaml_path, "", root, "params_checksum", &params_checksum);
   std::string root_correction = "camera";  // files written before the key existed
   ReadOptional(yaml_path, "", root, "root_correction", &root_correction);
   if (root_correction != kRootCorrectionObjectSide && root_correction != "camera") {
@@ -649,7 +664,7 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
     }
     model->set_canonical_bounds(Eigen::AlignedBox3d(lo, hi));
   }
-  ReadParameters(dir, yaml_path, expected_count, model.get());
+  ReadParameters(dir, yaml_path, expected_count, params_checksum, model.get());
   if (root_correction != kRootCorrectionObjectSide) ObjectSideRootCorrections(model.get());
   return model;
 }

@@ -8,6 +8,7 @@
 
 #include "banmo/model/model_file.h"
 #include "banmo/util/atomic_file.h"
+#include "banmo/util/checksum.h"
 #include "banmo/util/error.h"
 #include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
@@ -53,6 +54,20 @@ CheckpointInfo ReadInfo(const std::string& dir) {
   return info;
 }
 
+// checkpoint.yaml's state_checksum ("" if absent or a legacy checkpoint).
+std::string ReadStateChecksum(const std::string& dir) {
+  const std::string path = dir + "/checkpoint.yaml";
+  if (!std::filesystem::exists(path)) return "";
+  try {
+    const YAML::Node root = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes));
+    const YAML::Node checksum = root["state_checksum"];
+    return checksum ? checksum.as<std::string>() : "";
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(path, ": malformed key 'state_checksum' (", e.what(),
+                    "): the file is damaged; solve again (without --resume)");
+  }
+}
+
 }  // namespace
 
 void SaveCheckpoint(const std::string& final_dir, const Model& model, const CheckpointInfo& info,
@@ -73,6 +88,9 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
   out << YAML::Key << "format" << YAML::Value << kCheckpointFormat;
   out << YAML::Key << "stage" << YAML::Value << info.stage;
   out << YAML::Key << "batch" << YAML::Value << info.batch;
+  if (!solver_state.empty()) {
+    out << YAML::Key << "state_checksum" << YAML::Value << ContentChecksum(solver_state);
+  }
   out << YAML::Key << "config" << YAML::Value << YAML::Literal << info.config;
   out << YAML::EndMap;
   CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
@@ -111,6 +129,12 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
   if (solver_state != nullptr) {
     const std::string state_path = dir + "/state.bin";
     *solver_state = std::filesystem::exists(state_path) ? ReadFile(state_path) : std::string();
+    // Checkpoints written before the checksum existed have none (accepted).
+    const std::string checksum = ReadStateChecksum(dir);
+    if (!solver_state->empty() && !checksum.empty()) {
+      VerifyChecksum(state_path, *solver_state, checksum, dir + "/checkpoint.yaml",
+                     "state_checksum");
+    }
   }
   return model;
 }

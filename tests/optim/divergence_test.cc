@@ -175,7 +175,26 @@ TEST_F(DivergenceGuard, GarbageArgumentsAndCheckpointsAreRefusedByKey) {
   r = Solve("ok", "", "", "--resume");
   EXPECT_EQ(r.exit_code, 2) << r.out;
   EXPECT_NE(r.out.find("stage 0, batch 6 is out of range"), std::string::npos) << r.out;
+  // A state.bin whose length field is absurd, in a checkpoint without the
+  // checksum (an older banmo's): an error naming the file, no bad_alloc.
+  const std::string state = Read(checkpoint + "/state.bin");
+  std::string huge = state;
+  for (int k = 28; k < 36; ++k) huge[k] = '\xff';  // the random state's length
+  std::ofstream(checkpoint + "/state.bin", std::ios::binary) << huge;
+  std::string no_checksum = yaml;
+  const std::size_t at = no_checksum.find("state_checksum: ");
+  ASSERT_NE(at, std::string::npos) << yaml;
+  no_checksum.erase(at, no_checksum.find('\n', at) + 1 - at);
+  std::ofstream(checkpoint + "/checkpoint.yaml") << no_checksum;
+  r = Solve("ok", "", "", "--resume");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("checkpoint state.bin: truncated or damaged"), std::string::npos) << r.out;
+  // With the checksum: the changed bytes are named first.
   std::ofstream(checkpoint + "/checkpoint.yaml") << yaml;
+  r = Solve("ok", "", "", "--resume");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("state.bin: checksum"), std::string::npos) << r.out;
+  std::ofstream(checkpoint + "/state.bin", std::ios::binary) << state;
   // An unknown key in model.yaml.
   const std::string model = Read(checkpoint + "/model.yaml");
   std::ofstream(checkpoint + "/model.yaml") << model << "surprise: 1\n";
