@@ -234,6 +234,7 @@ Dataset LoadDataset(const std::string& dir, const LoadOptions& options) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) ThrowInputError(dir, ": not a folder (expected a dataset)");
   const std::string root = fs::absolute(dir, ec).lexically_normal().string();
+  internal::RecoverInterruptedAdd(root);
   const internal::Manifest manifest = internal::ReadManifest(root + "/" + internal::kManifestName);
 
   // 1. Structure: exactly the expected files and folders (cheap, serial).

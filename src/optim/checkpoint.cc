@@ -81,21 +81,27 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
   std::error_code ec;
   fs::remove_all(dir, ec);
   MakeDirectories(dir);
-  WriteModelFiles(dir, model);
+  // A failed write (full disk) leaves no checkpoint.tmp behind.
+  try {
+    WriteModelFiles(dir, model);
 
-  YAML::Emitter out;
-  out << YAML::BeginMap;
-  out << YAML::Key << "format" << YAML::Value << kCheckpointFormat;
-  out << YAML::Key << "stage" << YAML::Value << info.stage;
-  out << YAML::Key << "batch" << YAML::Value << info.batch;
-  if (!solver_state.empty()) {
-    out << YAML::Key << "state_checksum" << YAML::Value << ContentChecksum(solver_state);
+    YAML::Emitter out;
+    out << YAML::BeginMap;
+    out << YAML::Key << "format" << YAML::Value << kCheckpointFormat;
+    out << YAML::Key << "stage" << YAML::Value << info.stage;
+    out << YAML::Key << "batch" << YAML::Value << info.batch;
+    if (!solver_state.empty()) {
+      out << YAML::Key << "state_checksum" << YAML::Value << ContentChecksum(solver_state);
+    }
+    out << YAML::Key << "config" << YAML::Value << YAML::Literal << info.config;
+    out << YAML::EndMap;
+    CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
+    WriteFileAtomic(dir + "/checkpoint.yaml", std::string(out.c_str()) + "\n");
+    if (!solver_state.empty()) WriteFileAtomic(dir + "/state.bin", solver_state);
+  } catch (...) {
+    fs::remove_all(dir, ec);
+    throw;
   }
-  out << YAML::Key << "config" << YAML::Value << YAML::Literal << info.config;
-  out << YAML::EndMap;
-  CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
-  WriteFileAtomic(dir + "/checkpoint.yaml", std::string(out.c_str()) + "\n");
-  if (!solver_state.empty()) WriteFileAtomic(dir + "/state.bin", solver_state);
 
   const std::string old = final_dir + ".old";
   fs::remove_all(old, ec);

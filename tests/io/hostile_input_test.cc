@@ -4,6 +4,8 @@
 // Loads that could block run in a child process with a time limit.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <string>
@@ -152,6 +154,54 @@ TEST(HostileDataset, DuplicateKeysAndAbsurdDepthUnitAreRefused) {
   EXPECT_NE(error.find("key 'depth_unit' is 1e+308, expected a number in [1e-9, 1e3]"),
             std::string::npos)
       << error;
+}
+
+// The pid of a process that has exited (a killed `prepare --add`).
+long DeadPid() {
+  const pid_t pid = ::fork();
+  if (pid == 0) ::_exit(0);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return pid;
+}
+
+// `prepare --add` killed at each point between its renames: the next
+// LoadDataset (check, solve) or add rolls the add back or completes it,
+// and the retry works.
+TEST(HostileDataset, AddKilledBetweenItsRenamesIsRecovered) {
+  Dataset one = MakeSmallDataset();
+  one.videos.resize(1);
+  one.videos[0].name = "video9";
+  for (int point = 0; point < 4; ++point) {
+    TempDir tmp;
+    const std::string dir = WriteValid(tmp);
+    const std::string stage = dir + ".add-" + std::to_string(DeadPid()) + "-7";
+    if (point == 3) {  // killed after the manifest's rename: only the staging folder left
+      AddVideosToDataset(one, dir, WriteOptions());
+      WriteDataset(one, stage, WriteOptions());
+    } else {
+      WriteDataset(one, stage, WriteOptions());
+      if (point >= 1) fs::rename(stage + "/video9", dir + "/video9");  // moved in
+      if (point >= 2) {  // the new manifest's temporary file, not yet renamed
+        WriteText(dir + "/manifest.yaml.tmp." + std::to_string(DeadPid()) + ".5", "format: x\n");
+      }
+    }
+    const auto r = testing::ErrorOfWithTimeout([&] { LoadDataset(dir, LoadAll()); });
+    ASSERT_TRUE(r.finished);
+    EXPECT_EQ(r.message, "") << "point " << point;
+    EXPECT_FALSE(fs::exists(stage)) << "point " << point;
+    for (const auto& e : fs::directory_iterator(dir)) {
+      EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos)
+          << "point " << point << ": " << e.path();
+    }
+    const Dataset loaded = LoadDataset(dir, LoadAll());
+    EXPECT_EQ(loaded.videos.size(), point == 3 ? 3u : 2u) << "point " << point;
+    if (point < 3) {
+      EXPECT_FALSE(fs::exists(dir + "/video9")) << "point " << point;
+      AddVideosToDataset(one, dir, WriteOptions());  // the retry
+      EXPECT_EQ(LoadDataset(dir, LoadAll()).videos.size(), 3u) << "point " << point;
+    }
+  }
 }
 
 TEST(HostileDataset, PngHeaderBeyondTheLimitsIsRefusedBeforeDecoding) {
