@@ -403,8 +403,7 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
 }
 
 std::string ResolveModelFolder(const std::string& dir) {
-  if (!std::filesystem::exists(dir + "/model.yaml") &&
-      std::filesystem::exists(dir + ".old/model.yaml")) {
+  if (!PathExists(dir + "/model.yaml") && PathExists(dir + ".old/model.yaml")) {
     return dir + ".old";  // a save was interrupted between its two renames
   }
   return dir;
@@ -428,7 +427,7 @@ void ObjectSideRootCorrections(Model* model) {
 // model.yaml of folder `dir` parsed, with its format checked (sets *legacy for
 // the solver's older checkpoint format).
 YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, bool* legacy) {
-  if (!std::filesystem::exists(yaml_path)) {
+  if (!PathExists(yaml_path)) {
     ThrowInputError(dir, ": not a model folder (no model.yaml)", kWhatToDo);
   }
   YAML::Node root;

@@ -28,7 +28,7 @@ std::string ReadFile(const std::string& path) { return ReadRegularFile(path); }
 CheckpointInfo ReadInfo(const std::string& dir) {
   std::string path = dir + "/checkpoint.yaml";
   std::string expected_format = kCheckpointFormat;
-  if (!std::filesystem::exists(path)) {
+  if (!PathExists(path)) {
     path = dir + "/model.yaml";
     expected_format = kLegacyCheckpointFormat;
   }
@@ -57,7 +57,7 @@ CheckpointInfo ReadInfo(const std::string& dir) {
 // checkpoint.yaml's state_checksum ("" if absent or a legacy checkpoint).
 std::string ReadStateChecksum(const std::string& dir) {
   const std::string path = dir + "/checkpoint.yaml";
-  if (!std::filesystem::exists(path)) return "";
+  if (!PathExists(path)) return "";
   try {
     const YAML::Node root = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes));
     const YAML::Node checksum = root["state_checksum"];
@@ -134,7 +134,7 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
   if (info != nullptr) *info = ReadInfo(dir);
   if (solver_state != nullptr) {
     const std::string state_path = dir + "/state.bin";
-    *solver_state = std::filesystem::exists(state_path) ? ReadFile(state_path) : std::string();
+    *solver_state = PathExists(state_path) ? ReadFile(state_path) : std::string();
     // Checkpoints written before the checksum existed have none (accepted).
     const std::string checksum = ReadStateChecksum(dir);
     if (!solver_state->empty() && !checksum.empty()) {

@@ -49,6 +49,12 @@ void CheckRegularFile(const std::string& path, const std::string& hint) {
   if (!S_ISREG(st.st_mode)) ThrowNotRegular(path, st.st_mode, hint);
 }
 
+bool PathExists(const std::string& path) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) == 0) return true;
+  return errno != ENOENT && errno != ENOTDIR;
+}
+
 bool IsSpecialFile(const std::string& path) {
   struct stat st;
   return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode);

@@ -432,5 +432,21 @@ TEST(ModelFile, SizesBeyondTheLimitsAreRefusedByFileAndKey) {
   }
 }
 
+// A model folder (or its model.yaml) that is a symbolic link loop: an
+// error naming it (std::filesystem::exists threw: exit 3).
+TEST(ModelFile, SymlinkLoopsAreNamed) {
+  const fs::path dir = FreshDir("banmo_model_file_loop");
+  fs::create_symlink(dir / "b", dir / "a");
+  fs::create_symlink(dir / "a", dir / "b");
+  std::string error = LoadError(dir / "a");
+  EXPECT_NE(error.find("Too many levels of symbolic links"), std::string::npos) << error;
+  fs::create_directories(dir / "m");
+  fs::create_symlink("model.yaml", dir / "m" / "model.yaml");
+  error = LoadError(dir / "m");
+  EXPECT_NE(error.find((dir / "m" / "model.yaml").string() + ": cannot open file (Too many levels"),
+            std::string::npos)
+      << error;
+}
+
 }  // namespace
 }  // namespace banmo

@@ -16,6 +16,12 @@ inline constexpr std::uint64_t kMaxInputFileBytes = std::uint64_t{4} << 30;
 // and model YAML): 64 MiB, far above any file banmo writes.
 inline constexpr std::uint64_t kMaxTextFileBytes = std::uint64_t{64} << 20;
 
+// True unless `path` certainly does not exist (ENOENT, ENOTDIR). Never
+// throws: a symbolic link loop or an unreadable folder counts as existing, so
+// that the read which follows names the problem (std::filesystem::exists
+// throws there, which ended as an internal error).
+bool PathExists(const std::string& path);
+
 // Throws InputError naming `path` unless it names an existing regular file
 // (symbolic links are followed; a symbolic link loop is refused by name).
 // `hint` is appended to the message (e.g. what to do instead).
