@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -26,6 +27,19 @@ void FsyncPath(const std::string& path) {
     ::fsync(fd);
     ::close(fd);
   }
+}
+
+// True for TempPathFor's names: "<name>.tmp.<pid>.<n>" (digits only).
+bool IsTempName(const std::string& name) {
+  const std::size_t at = name.rfind(".tmp.");
+  if (at == std::string::npos || at == 0) return false;
+  const std::string rest = name.substr(at + 5);
+  const std::size_t dot = rest.find('.');
+  if (dot == std::string::npos || dot == 0 || dot + 1 == rest.size()) return false;
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    if (i != dot && !std::isdigit(static_cast<unsigned char>(rest[i]))) return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -69,7 +83,7 @@ int RemoveStaleTempFiles(const std::string& dir) {
   int removed = 0;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     const std::string name = entry.path().filename().string();
-    if (!entry.is_regular_file(ec) || name.find(".tmp.") == std::string::npos) continue;
+    if (!entry.is_regular_file(ec) || !IsTempName(name)) continue;
     if (fs::remove(entry.path(), ec)) ++removed;
   }
   return removed;
