@@ -54,16 +54,22 @@ std::string ReadBytes(const std::string& path) {
 
 // ---- External files: only inside the glTF's own folder. ----
 
-// tinygltf's URI decoding (dlib::urldecode): %XX escapes, '+' as space.
+// tinygltf's URI decoding, exactly (dlib::urldecode in tiny_gltf.h): '+' is a
+// space, '%' and the next two characters are one byte (a character that is
+// not a hex digit counts as 0), so the checks see the path tinygltf opens.
 std::string UrlDecode(const std::string& s) {
+  auto hex = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return 0;
+  };
   std::string out;
   for (std::size_t i = 0; i < s.size(); ++i) {
     if (s[i] == '+') {
       out += ' ';
-    } else if (s[i] == '%' && i + 2 < s.size() &&
-               std::isxdigit(static_cast<unsigned char>(s[i + 1])) &&
-               std::isxdigit(static_cast<unsigned char>(s[i + 2]))) {
-      out += static_cast<char>(std::stoi(s.substr(i + 1, 2), nullptr, 16));
+    } else if (s[i] == '%' && s.size() > i + 2) {
+      out += static_cast<char>((hex(s[i + 1]) << 4) | hex(s[i + 2]));
       i += 2;
     } else {
       out += s[i];

@@ -105,6 +105,7 @@ TEST(GltfUris, OnlyFilesInsideTheGltfsFolderAreOpened) {
   } cases[] = {
       {"buffers", "../strip.bin", "'..' may not leave"},
       {"buffers", "%2E%2E/strip.bin", "'..' may not leave"},
+      {"buffers", "strip.bin%zz../x", "contains a NUL character"},
       {"buffers", "sub/../../strip.bin", "'..' may not leave"},
       {"buffers", absolute, "absolute paths are not allowed"},
       {"buffers", "file://" + absolute, "URI schemes"},
