@@ -306,7 +306,11 @@ cv::Mat DecodeNpy(const std::string& bytes, const std::string& name) {
   const DtypeInfo* d = FindDtype(header.descr);
   cv::Mat image(static_cast<int>(rows), static_cast<int>(cols),
                 CV_MAKETYPE(d->cv_depth, static_cast<int>(channels)));
-  std::memcpy(image.data, bytes.data() + header.data_offset, header.DataBytes());
+  // An empty array (a 0 in the shape) has no data pointer: nothing to copy
+  // (memcpy from/to null is undefined even for 0 bytes; found by fuzz_npy).
+  if (header.DataBytes() > 0) {
+    std::memcpy(image.data, bytes.data() + header.data_offset, header.DataBytes());
+  }
   return image;
 }
 
