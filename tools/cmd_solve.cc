@@ -42,7 +42,8 @@ int RunSolve(int argc, char** argv) {
                  "embedding and bones fixed and fit the poses of this dataset's videos");
   app.add_option("--seed", seed,
                  "Random seed (overrides the config's; a --resume continues the checkpoint's)");
-  app.add_option("--threads", threads, "Worker threads (0 = all cores; overrides the config)");
+  CLI::Option* threads_option =
+      app.add_option("--threads", threads, "Worker threads (0 = all cores; overrides the config)");
   app.add_option("--resolution", resolution, "Marching-cubes resolution of the final meshes")
       ->capture_default_str();
   app.add_flag("--overwrite", overwrite, "Allow a non-empty --out (without --resume)");
@@ -63,7 +64,10 @@ int RunSolve(int argc, char** argv) {
 
   SolverConfig config = LoadSolverConfig(config_path);
   if (seed >= 0) config.seed = static_cast<uint32_t>(seed);
-  if (threads >= 0) config.threads = threads;
+  if (threads_option->count() > 0) {
+    if (threads < 0) ThrowInputError("--threads: expected >= 0 (0 = all cores), got ", threads);
+    config.threads = threads;
+  }
   // Retargeting an automatically sized model: its grown sizes come from its
   // checkpoint, and nothing grows (the shared blocks are held constant).
   const bool retarget_auto_sized = !retarget_dir.empty() && config.model.auto_size.enabled;

@@ -15,6 +15,7 @@
 #include "banmo/optim/checkpoint.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/timer.h"
 #include "banmo/visualize/holdout.h"
 #include "banmo/visualize/render.h"
@@ -58,10 +59,10 @@ void WriteSolveOutputs(const Model& model, const Dataset& dataset, const std::st
 
 int ResolveHoldoutEvery(const std::string& out_dir, bool resume, bool given, int every) {
   const std::string path = out_dir + "/holdout.yaml";
-  if (resume && std::filesystem::exists(path)) {
+  if (resume && PathExists(path)) {
     int recorded = 0;
     try {
-      recorded = YAML::LoadFile(path)["every"].as<int>();
+      recorded = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes))["every"].as<int>();
     } catch (const YAML::Exception& e) {
       ThrowInputError(path, ": expected 'every: N' (an integer), ", e.what());
     }

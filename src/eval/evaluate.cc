@@ -42,9 +42,13 @@ void EvalOptions::Check() const {
     ThrowInputError("trim_fraction: must be in (0, 1], got ", trim_fraction);
   }
   if (!(huber_factor > 0.0)) ThrowInputError("huber_factor: must be > 0, got ", huber_factor);
-  if (num_samples < 100) ThrowInputError("num_samples: must be >= 100, got ", num_samples);
-  if (dense_samples < 100) {
-    ThrowInputError("dense_samples: must be >= 100, got ", dense_samples);
+  // 1e7 samples of two surfaces: ~0.5 GB of points and KD-trees.
+  constexpr int kMaxSamples = 10000000;
+  if (num_samples < 100 || num_samples > kMaxSamples) {
+    ThrowInputError("num_samples: must be in [100, ", kMaxSamples, "], got ", num_samples);
+  }
+  if (dense_samples < 100 || dense_samples > kMaxSamples) {
+    ThrowInputError("dense_samples: must be in [100, ", kMaxSamples, "], got ", dense_samples);
   }
   if (dense_icp_queries < 0) {
     ThrowInputError("dense_icp_queries: must be >= 0, got ", dense_icp_queries);

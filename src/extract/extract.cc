@@ -215,9 +215,24 @@ Eigen::Matrix<std::uint8_t, 3, Eigen::Dynamic> CanonicalColors(const Model& mode
   return colors;
 }
 
+namespace {
+
+// color_video must name one of the model's videos (or -1).
+void CheckColorVideo(const Model& model, const ExtractOptions& options) {
+  if (options.color_video >= model.num_videos()) {
+    ThrowInputError("extract.color_video (--color-video): video ", options.color_video,
+                    " does not exist: the model has ", model.num_videos(),
+                    " video(s) (expected -1 for no appearance code, or 0..", model.num_videos() - 1,
+                    ")");
+  }
+}
+
+}  // namespace
+
 TriangleMesh ExtractCanonicalMesh(const Model& model, const ExtractOptions& options,
                                   MarchingCubesStats* stats) {
   options.Check();
+  CheckColorVideo(model, options);
   TriangleMesh mesh = MarchingCubes(ModelSdfFunction(model), options.grid, stats);
   mesh = KeepLargeComponents(mesh, options.min_component_fraction);
   if (mesh.NumVertices() > 0)
@@ -364,6 +379,7 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
                                   const std::string& out_dir,
                                   const std::function<void(int done, int total)>& progress) {
   options.Check();
+  CheckColorVideo(model, options);
   std::vector<std::pair<int, int>> frames;
   if (options.frames.all) {
     for (int v = 0; v < model.num_videos(); ++v) {
@@ -391,8 +407,11 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
   summary.canonical_faces = canonical.NumFaces();
 
   namespace fs = std::filesystem;
-  MakeDirectories(out_dir);
-  const fs::path out(out_dir);
+  // Everything is written to a staging folder first and moved into out_dir
+  // only once all of it is written: a failure (a non-finite mesh, a full
+  // disk) or a kill leaves no partial set of meshes.
+  StagedOutput staged(out_dir, "extract");
+  const fs::path out(staged.path());
   WritePly((out / "canonical.ply").string(), MeshInDatasetUnits(model, canonical));
 
   const int B = model.num_bones();
@@ -447,12 +466,12 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
     // `banmo eval --pred OUT/frames`: say so (they are not deleted).
     int stale = 0;
     std::error_code ec;
-    for (const auto& entry : fs::directory_iterator(frame_dir, ec)) {
+    for (const auto& entry : fs::directory_iterator(fs::path(out_dir) / "frames", ec)) {
       const std::string name = entry.path().filename().string();
       if (entry.path().extension() == ".ply" && !written.count(name)) ++stale;
     }
     if (stale > 0) {
-      LOG(WARNING) << frame_dir.string() << " holds " << stale
+      LOG(WARNING) << (fs::path(out_dir) / "frames").string() << " holds " << stale
                    << " other .ply files (from an earlier run?); `banmo eval --pred` on this "
                       "folder would read them too";
     }
@@ -484,6 +503,7 @@ ExtractionSummary WriteExtraction(const Model& model, const ExtractOptions& opti
        << "  \"articulate_seconds\": " << summary.articulate_seconds << "\n"
        << "}\n";
   WriteFileAtomic((out / "extract.json").string(), json.str());
+  staged.Commit();
   return summary;
 }
 

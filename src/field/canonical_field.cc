@@ -78,14 +78,24 @@ bool CanonicalFieldOptions::Check(std::string* error) const {
   if (use_view_direction && !view_encoding.Check(&sub)) {
     return Fail(error, "view_encoding." + sub);
   }
-  if (sdf_width <= 0) return Fail(error, "sdf_width must be > 0");
-  if (sdf_layers < 1) return Fail(error, "sdf_layers must be >= 1");
-  if (geometry_feature_dim < 0) return Fail(error, "geometry_feature_dim must be >= 0");
-  if (color_width <= 0) return Fail(error, "color_width must be > 0");
-  if (color_layers < 0) return Fail(error, "color_layers must be >= 0");
-  if (appearance_code_dim < 0) return Fail(error, "appearance_code_dim must be >= 0");
-  if (embedding_width <= 0) return Fail(error, "embedding_width must be > 0");
-  if (embedding_layers < 0) return Fail(error, "embedding_layers must be >= 0");
+  // Upper limits bound the memory a model file or config can ask for
+  // (docs/robustness.md): 4096 x 4096 weights per layer, 64 layers.
+  constexpr int kMaxWidth = 4096, kMaxLayers = 64, kMaxDim = 1024;
+  auto range = [&](const char* key, int v, int lo, int hi) {
+    if (v >= lo && v <= hi) return true;
+    return Fail(error, std::string(key) + " must be in [" + std::to_string(lo) + ", " +
+                           std::to_string(hi) + "], got " + std::to_string(v));
+  };
+  if (!range("sdf_width", sdf_width, 1, kMaxWidth) ||
+      !range("sdf_layers", sdf_layers, 1, kMaxLayers) ||
+      !range("geometry_feature_dim", geometry_feature_dim, 0, kMaxDim) ||
+      !range("color_width", color_width, 1, kMaxWidth) ||
+      !range("color_layers", color_layers, 0, kMaxLayers) ||
+      !range("appearance_code_dim", appearance_code_dim, 0, kMaxDim) ||
+      !range("embedding_width", embedding_width, 1, kMaxWidth) ||
+      !range("embedding_layers", embedding_layers, 0, kMaxLayers)) {
+    return false;
+  }
   if (!(softplus_beta > 0.0) || !std::isfinite(softplus_beta)) {
     return Fail(error, "softplus_beta must be finite and > 0");
   }

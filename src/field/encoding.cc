@@ -17,7 +17,11 @@ bool Fail(std::string* error, const std::string& msg) {
 }  // namespace
 
 bool PositionalEncodingOptions::Check(std::string* error) const {
-  if (num_bands < 0) return Fail(error, "num_bands must be >= 0");
+  // Band L has frequency 2^L: beyond 32 bands a double's sine is noise
+  // (and the encoding's width, 6 per band, only costs memory).
+  if (num_bands < 0 || num_bands > 32) {
+    return Fail(error, "num_bands must be in [0, 32], got " + std::to_string(num_bands));
+  }
   if (!(base_frequency > 0.0) || !std::isfinite(base_frequency)) {
     return Fail(error, "base_frequency must be finite and > 0");
   }

@@ -114,6 +114,40 @@ bool HostIsLittleEndian() {
   return first == 1;
 }
 
+// Checks what CGAL's PLY reader assumes without checking: the vertex
+// coordinates x, y, z are float or double properties (an integer one is a
+// null pointer dereference in CGAL, an assertion in debug builds; found by
+// fuzz/fuzz_mesh.cc) and the header ends within 64 KiB.
+void CheckPlyHeader(const std::string& path) {
+  std::ifstream is(path, std::ios::binary);
+  if (!is) ThrowInputError(path, ": cannot open mesh file for reading");
+  std::string line, element;
+  std::size_t read = 0;
+  while (std::getline(is, line)) {
+    read += line.size() + 1;
+    if (read > 65536) ThrowInputError(path, ": PLY header longer than 64 KiB");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream words(line);
+    std::string keyword;
+    words >> keyword;
+    if (keyword == "end_header") return;
+    if (keyword == "element") {
+      words >> element;
+    } else if (keyword == "property" && element == "vertex") {
+      std::string type, name;
+      words >> type >> name;
+      if (type == "list") continue;
+      const bool floating =
+          type == "float" || type == "float32" || type == "double" || type == "float64";
+      if ((name == "x" || name == "y" || name == "z") && !floating) {
+        ThrowInputError(path, ": PLY vertex property '", name, "' has type '", type,
+                        "', expected float or double");
+      }
+    }
+  }
+  ThrowInputError(path, ": could not parse the mesh (expected a valid .ply file; no end_header)");
+}
+
 }  // namespace
 
 TriangleMesh ReadMesh(const std::string& path) {
@@ -127,6 +161,7 @@ TriangleMesh ReadMesh(const std::string& path) {
   std::vector<CGAL::IO::Color> vertex_colors;
   bool ok = false;
   if (ext == ".ply") {
+    CheckPlyHeader(path);
     std::ifstream is(path, std::ios::binary);
     if (!is) ThrowInputError(path, ": cannot open mesh file for reading");
     CGAL::IO::set_mode(is, CGAL::IO::BINARY);

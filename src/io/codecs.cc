@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -62,18 +63,7 @@ bool AllFiniteTyped(const cv::Mat& m, cv::Vec3i* first_bad) {
 
 }  // namespace
 
-std::string ReadFileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open file");
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  if (size < 0) ThrowInputError(path, ": cannot read file");
-  in.seekg(0);
-  std::string bytes(static_cast<std::size_t>(size), '\0');
-  in.read(bytes.data(), size);
-  if (!in) ThrowInputError(path, ": read error");
-  return bytes;
-}
+std::string ReadFileBytes(const std::string& path) { return ReadRegularFile(path); }
 
 PngInfo ParsePngInfo(const std::string& bytes, const std::string& name) {
   const auto* u = reinterpret_cast<const unsigned char*>(bytes.data());
@@ -84,8 +74,14 @@ PngInfo ParsePngInfo(const std::string& bytes, const std::string& name) {
     ThrowInputError(name, ": corrupt PNG (first chunk is not IHDR)");
   }
   PngInfo info;
-  info.width = static_cast<int>(ReadBigEndian32(u + 16));
-  info.height = static_cast<int>(ReadBigEndian32(u + 20));
+  const std::uint32_t width = ReadBigEndian32(u + 16), height = ReadBigEndian32(u + 20);
+  if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide ||
+      static_cast<long>(width) * height > kMaxFramePixels) {
+    ThrowInputError(name, ": PNG of ", width, "x", height, " pixels is beyond the limit (sides 1..",
+                    kMaxImageSide, ", at most ", kMaxFramePixels, " pixels)");
+  }
+  info.width = static_cast<int>(width);
+  info.height = static_cast<int>(height);
   info.bit_depth = u[24];
   switch (u[25]) {
     case 0:
@@ -132,6 +128,7 @@ cv::Mat DecodePngStrict(const std::string& bytes, const std::string& name, int d
 }
 
 PngInfo CheckPngFile(const std::string& path, int depth, int channels, int width, int height) {
+  CheckRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) ThrowInputError(path, ": cannot open file");
   in.seekg(0, std::ios::end);

@@ -10,6 +10,7 @@
 
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 
 namespace banmo {
 
@@ -51,8 +52,7 @@ std::string FrameFileName(int index, const std::string& extension) {
 }
 
 std::vector<Pose> ReadPoseFile(const std::string& path, int expected_lines) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, ": cannot open the pose file");
+  std::istringstream in(ReadRegularFile(path, kMaxTextFileBytes, " (the pose file)"));
   std::vector<Pose> poses;
   std::string line;
   int line_number = 0;
@@ -79,6 +79,10 @@ std::vector<Pose> ReadPoseFile(const std::string& path, int expected_lines) {
     Pose pose;
     for (int i = 0; i < kPoseSize; ++i) pose[i] = values[i];
     if (!pose.allFinite()) ThrowInputError(path, ":", line_number, ": non-finite pose value");
+    if (pose.tail<3>().cwiseAbs().maxCoeff() > kMaxPoseTranslation) {
+      ThrowInputError(path, ":", line_number, ": translation (tx ty tz) beyond +-",
+                      kMaxPoseTranslation, " (docs/robustness.md)");
+    }
     const double norm = pose.head<4>().norm();
     if (std::abs(norm - 1.0) > 1e-3) {
       ThrowInputError(path, ":", line_number, ": quaternion (qw qx qy qz) has norm ", norm,

@@ -1,10 +1,13 @@
 // AddVideosToDataset: new videos into an existing dataset, written beside it
 // first, moved in, manifest replaced last.
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <random>
 #include <set>
@@ -62,7 +65,87 @@ void CheckAddition(const Dataset& added, const std::string& dir, const internal:
   }
 }
 
+// True unless the process `pid` is known to be gone (ESRCH): a staging
+// folder of a running add is left alone.
+bool ProcessMayBeAlive(long pid) {
+  if (pid <= 0) return false;
+  return ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH;
+}
+
+// The pid in a staging folder's name `<root>.add-<pid>-<n>`, or -1.
+long StagePid(const std::string& suffix) {
+  const std::size_t dash = suffix.find('-');
+  if (dash == std::string::npos || dash == 0) return -1;
+  char* end = nullptr;
+  const long pid = std::strtol(suffix.substr(0, dash).c_str(), &end, 10);
+  return end != nullptr && *end == '\0' ? pid : -1;
+}
+
 }  // namespace
+
+namespace internal {
+
+std::string RecoverInterruptedAdd(const std::string& dir) {
+  fs::path root = fs::path(dir).lexically_normal();
+  if (root.filename().empty()) root = root.parent_path();
+  const std::string prefix = root.filename().string() + ".add-";
+  fs::path parent = root.parent_path();
+  if (parent.empty()) parent = ".";
+  std::error_code ec;
+  std::vector<fs::path> stages;
+  for (const auto& entry : fs::directory_iterator(parent, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(prefix, 0) != 0 || !entry.is_directory(ec)) continue;
+    if (ProcessMayBeAlive(StagePid(name.substr(prefix.size())))) continue;
+    stages.push_back(entry.path());
+  }
+  std::string note;
+  const fs::path manifest_path = root / kManifestName;
+  for (const fs::path& stage : stages) {
+    const fs::path stage_manifest = stage / kManifestName;
+    if (fs::exists(stage_manifest, ec) && fs::exists(manifest_path, ec)) {
+      std::set<std::string> listed;
+      for (const ManifestVideo& v : ReadManifest(manifest_path.string()).videos) {
+        listed.insert(v.name);
+      }
+      Manifest added;
+      try {
+        added = ReadManifest(stage_manifest.string());
+      } catch (const InputError&) {
+        // The staging dataset itself was half-written: nothing was moved.
+      }
+      bool completed = !added.videos.empty();
+      for (const ManifestVideo& v : added.videos) completed = completed && listed.count(v.name);
+      if (!completed) {
+        for (const ManifestVideo& v : added.videos) {
+          if (!listed.count(v.name) && fs::exists(root / v.name, ec)) {
+            fs::remove_all(root / v.name, ec);
+            note += " removed " + (root / v.name).string() + ";";
+          }
+        }
+      }
+      note += completed ? " the add had completed;" : " the add was rolled back;";
+    }
+    fs::remove_all(stage, ec);
+    note += " removed " + stage.string() + ";";
+  }
+  for (const auto& entry : fs::directory_iterator(root, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(std::string(kManifestName) + ".tmp.", 0) != 0) continue;
+    const std::string rest = name.substr(std::string(kManifestName).size() + 5);
+    if (ProcessMayBeAlive(StagePid(rest.substr(0, rest.find('.')) + "-"))) continue;
+    fs::remove(entry.path(), ec);
+    note += " removed " + entry.path().string() + ";";
+  }
+  if (!note.empty()) {
+    note = root.string() + ": recovered from an interrupted 'prepare --add':" + note;
+    note.pop_back();
+    LOG(WARNING) << note;
+  }
+  return note;
+}
+
+}  // namespace internal
 
 DatasetInfo ReadDatasetInfo(const std::string& dir) {
   std::error_code ec;
@@ -92,6 +175,7 @@ void AddVideosToDataset(const Dataset& added, const std::string& dir, const Writ
   if (!fs::is_directory(root, ec)) {
     ThrowInputError(dir, ": not a folder (to add a video, the dataset must exist)");
   }
+  internal::RecoverInterruptedAdd(root.string());
   const internal::Manifest existing = internal::ReadManifest(manifest_path);
   CheckAddition(added, root.string(), existing);
 

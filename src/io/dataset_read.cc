@@ -11,6 +11,7 @@
 #include "banmo/io/dataset.h"
 #include "banmo/io/npy.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
 #include "manifest.h"
@@ -233,6 +234,7 @@ void LoadFrame(const internal::Manifest& manifest, const internal::ManifestVideo
   }
   if (mv.present.gt_mesh) {
     const std::string path = vdir + "/gt_mesh/" + FrameFileName(t, "ply");
+    CheckRegularFile(path);
     std::ifstream in(path, std::ios::binary);
     char magic[4] = {0, 0, 0, 0};
     in.read(magic, 4);
@@ -249,6 +251,7 @@ Dataset LoadDataset(const std::string& dir, const LoadOptions& options) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) ThrowInputError(dir, ": not a folder (expected a dataset)");
   const std::string root = fs::absolute(dir, ec).lexically_normal().string();
+  internal::RecoverInterruptedAdd(root);
   const internal::Manifest manifest = internal::ReadManifest(root + "/" + internal::kManifestName);
 
   // 1. Structure: exactly the expected files and folders (cheap, serial).

@@ -7,7 +7,9 @@
 #include <cmath>
 #include <set>
 
+#include "banmo/io/codecs.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 
 namespace banmo::internal {
 namespace {
@@ -26,8 +28,13 @@ std::string Where(const std::string& path, const YAML::Node& node) {
 void CheckKeys(const YAML::Node& map, const std::string& path, const std::string& context,
                const std::set<std::string>& allowed) {
   if (!map.IsMap()) ThrowInputError(Where(path, map), ": ", context, " must be a mapping");
+  std::set<std::string> seen;
   for (const auto& kv : map) {
     const std::string key = kv.first.Scalar();
+    if (!seen.insert(key).second) {
+      // yaml-cpp keeps the first of repeated keys; which one was meant is unknown.
+      ThrowInputError(Where(path, kv.first), ": duplicate key '", key, "' in ", context);
+    }
     if (allowed.count(key) == 0) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
@@ -141,8 +148,11 @@ void ReadHeader(const YAML::Node& root, const std::string& path, Manifest* m) {
   if (root["depth_encoding"]) m->depth_encoding = ReadDepthEncoding(root["depth_encoding"], path);
   if (root["depth_unit"]) {
     m->depth_unit = As<double>(root["depth_unit"], path, "depth_unit", "a positive number");
-    if (!(std::isfinite(m->depth_unit) && m->depth_unit > 0)) {
-      ThrowInputError(path, ": key 'depth_unit' must be a positive finite number");
+    // 1e-9 .. 1e3 per step of a 16-bit PNG: nanometres to a 65 km range.
+    if (!(m->depth_unit >= 1e-9 && m->depth_unit <= 1e3)) {
+      ThrowInputError(path, ": key 'depth_unit' is ", m->depth_unit,
+                      ", expected a number in [1e-9, 1e3] (scene units per step of a 16-bit "
+                      "depth PNG)");
     }
   }
 }
@@ -204,9 +214,11 @@ ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::stri
     ThrowInputError(Where(path, v["frames"]), ": ", vctx, ".frames = ", mv.frames,
                     ", expected 1..100000");
   }
-  if (mv.width <= 0 || mv.height <= 0 || mv.width > 32768 || mv.height > 32768) {
+  if (mv.width <= 0 || mv.height <= 0 || mv.width > kMaxImageSide || mv.height > kMaxImageSide ||
+      static_cast<long>(mv.width) * mv.height > kMaxFramePixels) {
     ThrowInputError(Where(path, v), ": ", vctx, ": image size ", mv.width, "x", mv.height,
-                    " is not in 1..32768");
+                    " is beyond the limit (width and height in 1..", kMaxImageSide, ", at most ",
+                    kMaxFramePixels, " pixels; docs/robustness.md)");
   }
   const YAML::Node k = Required(v, "intrinsics", path, vctx);
   if (!k.IsSequence() || k.size() != 4) {
@@ -244,9 +256,8 @@ ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::stri
 Manifest ReadManifest(const std::string& path) {
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    ThrowInputError(path, ": cannot open the manifest (every dataset folder has one)");
+    root = YAML::Load(
+        ReadRegularFile(path, kMaxTextFileBytes, " (the manifest; every dataset folder has one)"));
   } catch (const YAML::Exception& e) {
     ThrowInputError(path, ": YAML syntax error at line ", e.mark.line + 1, ": ", e.msg);
   }
@@ -261,8 +272,16 @@ Manifest ReadManifest(const std::string& path) {
     ThrowInputError(Where(path, videos), ": key 'videos': expected a non-empty list");
   }
   std::set<std::string> names;
+  long pixels = 0;
   for (std::size_t i = 0; i < videos.size(); ++i) {
     m.videos.push_back(ReadVideoEntry(videos[i], i, path, m, &names));
+    const ManifestVideo& mv = m.videos.back();
+    pixels += static_cast<long>(mv.frames) * mv.width * mv.height;
+    if (pixels > kMaxDatasetPixels) {
+      ThrowInputError(Where(path, videos[i]), ": key 'videos': ", i + 1, " video(s) declare ",
+                      pixels, " pixels (frames x width x height), beyond the limit of ",
+                      kMaxDatasetPixels, " per dataset (docs/robustness.md)");
+    }
   }
   return m;
 }

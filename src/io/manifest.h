@@ -46,6 +46,16 @@ void CheckVideoName(const std::string& name, const std::string& where);
 void CheckIntrinsics(const Eigen::Vector4d& intrinsics, int width, int height,
                      const std::string& where);
 
+// Finishes off an AddVideosToDataset that was killed (dataset_add.cc): for
+// each staging folder `<root>.add-<pid>-<n>` beside the dataset whose
+// process is gone, the add is rolled back (video folders it moved into the
+// dataset but the manifest does not list are removed) or, if the manifest
+// already lists its videos, only the staging folder is removed; temporary
+// manifests (manifest.yaml.tmp.*) of a killed write are removed too.
+// Returns a note of what was done ("" if nothing). Called by LoadDataset
+// and AddVideosToDataset, so `check`, `solve` and `prepare --add` recover.
+std::string RecoverInterruptedAdd(const std::string& root);
+
 const char* FlowEncodingName(FlowEncoding e);
 const char* DepthEncodingName(DepthEncoding e);
 

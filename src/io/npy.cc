@@ -9,6 +9,7 @@
 #include "banmo/io/codecs.h"
 #include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -235,6 +236,7 @@ NpyHeader ParseNpyHeader(const std::string& bytes, const std::string& name) {
 }
 
 NpyHeader ReadNpyHeader(const std::string& path) {
+  CheckRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) ThrowInputError(path, ": cannot open file");
   in.seekg(0, std::ios::end);
@@ -304,7 +306,11 @@ cv::Mat DecodeNpy(const std::string& bytes, const std::string& name) {
   const DtypeInfo* d = FindDtype(header.descr);
   cv::Mat image(static_cast<int>(rows), static_cast<int>(cols),
                 CV_MAKETYPE(d->cv_depth, static_cast<int>(channels)));
-  std::memcpy(image.data, bytes.data() + header.data_offset, header.DataBytes());
+  // An empty array (a 0 in the shape) has no data pointer: nothing to copy
+  // (memcpy from/to null is undefined even for 0 bytes; found by fuzz_npy).
+  if (header.DataBytes() > 0) {
+    std::memcpy(image.data, bytes.data() + header.data_offset, header.DataBytes());
+  }
   return image;
 }
 

@@ -11,7 +11,8 @@
 namespace banmo {
 
 void ModelOptions::Check() const {
-  if (!field.Check()) ThrowInputError("model.field: invalid canonical field options");
+  std::string field_error;
+  if (!field.Check(&field_error)) ThrowInputError("model.field.", field_error);
   if (num_bones < 0 || num_bones > 256) {
     ThrowInputError("model.num_bones: expected 0..256, got ", num_bones);
   }

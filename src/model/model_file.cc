@@ -19,8 +19,10 @@
 #include "banmo/geometry/box.h"
 #include "banmo/model/model_options_fields.h"
 #include "banmo/util/atomic_file.h"
+#include "banmo/util/checksum.h"
 #include "banmo/util/error.h"
 #include "banmo/util/format.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -35,11 +37,7 @@ constexpr char kWhatToDo[] =
     "; pass the folder written by banmo solve (OUT/checkpoint), or solve again to write it";
 
 std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open file", kWhatToDo);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  return ReadRegularFile(path, kMaxInputFileBytes, kWhatToDo);
 }
 
 // ---- ModelOptions as YAML (the field lists of model_options_fields.h). ----
@@ -251,6 +249,25 @@ class OptionsReader {
 bool IsMap(const YAML::Node& node) { return node.IsDefined() && node.IsMap(); }
 bool IsSequence(const YAML::Node& node) { return node.IsDefined() && node.IsSequence(); }
 
+// An unknown or repeated key of `map` (written by a newer banmo, or a typo)
+// is an error naming the file and the key: it would otherwise be ignored.
+void CheckKnownKeys(const std::string& source, const std::string& path, const YAML::Node& map,
+                    const std::set<std::string>& known) {
+  std::set<std::string> seen;
+  for (const auto& kv : map) {
+    const std::string key = kv.first.Scalar();
+    if (!known.count(key)) {
+      ThrowInputError(source, ": unknown key '", path, key,
+                      "' (the file is damaged or from "
+                      "another banmo)",
+                      kWhatToDo);
+    }
+    if (!seen.insert(key).second) {
+      ThrowInputError(source, ": duplicate key '", path, key, "' (the file is damaged)", kWhatToDo);
+    }
+  }
+}
+
 // Reads node[key] into *value when the key is present (path names it).
 template <class T>
 void ReadOptional(const std::string& source, const std::string& path, const YAML::Node& node,
@@ -327,12 +344,14 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
   params.append(reinterpret_cast<const char*>(&count), sizeof(count));
   params += values;
   WriteFileAtomic(dir + "/params.bin", params);
+  const std::string params_checksum = ContentChecksum(params);
 
   ModelOptions options = model.options();  // the field lists take non-const references
   YAML::Emitter out;
   out << YAML::BeginMap;
   out << YAML::Key << "format" << YAML::Value << kModelFileFormat;
   out << YAML::Key << "parameters" << YAML::Value << count;
+  out << YAML::Key << "params_checksum" << YAML::Value << params_checksum;
   out << YAML::Key << "scene_scale" << YAML::Value << FormatDouble(model.scene_scale());
   out << YAML::Key << "canonical_origin" << YAML::Value;
   WriteVector3(out, model.canonical_origin());
@@ -384,8 +403,7 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
 }
 
 std::string ResolveModelFolder(const std::string& dir) {
-  if (!std::filesystem::exists(dir + "/model.yaml") &&
-      std::filesystem::exists(dir + ".old/model.yaml")) {
+  if (!PathExists(dir + "/model.yaml") && PathExists(dir + ".old/model.yaml")) {
     return dir + ".old";  // a save was interrupted between its two renames
   }
   return dir;
@@ -409,12 +427,12 @@ void ObjectSideRootCorrections(Model* model) {
 // model.yaml of folder `dir` parsed, with its format checked (sets *legacy for
 // the solver's older checkpoint format).
 YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, bool* legacy) {
-  if (!std::filesystem::exists(yaml_path)) {
+  if (!PathExists(yaml_path)) {
     ThrowInputError(dir, ": not a model folder (no model.yaml)", kWhatToDo);
   }
   YAML::Node root;
   try {
-    root = YAML::LoadFile(yaml_path);
+    root = YAML::Load(ReadRegularFile(yaml_path, kMaxTextFileBytes, kWhatToDo));
   } catch (const YAML::Exception& e) {
     ThrowInputError(yaml_path, ": not valid YAML (", e.what(), "): the file is damaged", kWhatToDo);
   }
@@ -431,6 +449,27 @@ YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, b
     ThrowInputError(yaml_path, ": unknown model format '", format, "' (this banmo reads ",
                     kModelFileFormat, " and ", kLegacyCheckpointFormat,
                     "); read it with the banmo that wrote it, or solve again with this one");
+  }
+  if (!*legacy) {
+    CheckKnownKeys(
+        yaml_path, "", root,
+        {"format", "parameters", "params_checksum", "scene_scale", "canonical_origin", "options",
+         "canonical_bounds", "training_sampling", "root_correction", "videos"});
+    if (IsMap(root["training_sampling"])) {
+      CheckKnownKeys(yaml_path, "training_sampling.", root["training_sampling"],
+                     {"samples_per_ray", "near_far_margin", "importance_depth", "clip_to_box",
+                      "clip_margin", "importance_samples", "min_sdf_sample"});
+    }
+    if (IsMap(root["canonical_bounds"])) {
+      CheckKnownKeys(yaml_path, "canonical_bounds.", root["canonical_bounds"], {"min", "max"});
+    }
+    if (root["videos"].IsSequence()) {
+      for (std::size_t v = 0; v < root["videos"].size(); ++v) {
+        if (!IsMap(root["videos"][v])) continue;
+        CheckKnownKeys(yaml_path, "videos[" + std::to_string(v) + "].", root["videos"][v],
+                       {"frames", "width", "height", "intrinsics"});
+      }
+    }
   }
   return root;
 }
@@ -484,11 +523,12 @@ void ReadOptions(const std::string& yaml_path, const YAML::Node& root, ModelOpti
     if (s["min_sdf_sample"].IsDefined()) {
       ReadRequired(source, s, "min_sdf_sample", &t.min_sdf_sample);
     }
-    if (t.samples_per_ray <= 0 || !(t.near_far_margin >= 0) || !(t.clip_margin >= 0) ||
-        t.importance_samples < 0) {
+    // 1024: the stage configuration's limit (docs/robustness.md).
+    if (t.samples_per_ray <= 0 || t.samples_per_ray > 1024 || !(t.near_far_margin >= 0) ||
+        !(t.clip_margin >= 0) || t.importance_samples < 0 || t.importance_samples > 1024) {
       ThrowInputError(yaml_path,
-                      ": key 'training_sampling': expected samples_per_ray > 0, "
-                      "near_far_margin >= 0, clip_margin >= 0 and importance_samples >= 0",
+                      ": key 'training_sampling': expected samples_per_ray in [1, 1024], "
+                      "near_far_margin >= 0, clip_margin >= 0 and importance_samples in [0, 1024]",
                       kWhatToDo);
     }
     *sampling = t;
@@ -511,8 +551,13 @@ void ReadVideos(const std::string& yaml_path, const YAML::Node& root, std::vecto
     ReadRequired(source, videos[v], "height", &cam.height);
     std::vector<double> k;
     ReadRequired(source, videos[v], "intrinsics", &k);
-    if (count < 0 || cam.width <= 0 || cam.height <= 0 || k.size() != 4) {
-      ThrowInputError(source, ": expected frames >= 0, width and height > 0 and 4 intrinsics",
+    // The dataset format's limits (docs/robustness.md): 100000 frames per
+    // video, sides of at most 16384 px.
+    if (count < 0 || count > 100000 || cam.width <= 0 || cam.height <= 0 || cam.width > 16384 ||
+        cam.height > 16384 || k.size() != 4) {
+      ThrowInputError(source,
+                      ": expected frames in [0, 100000], width and height in [1, 16384] and 4 "
+                      "intrinsics",
                       kWhatToDo);
     }
     for (int i = 0; i < 4; ++i) cam.intrinsics[i] = k[i];
@@ -524,7 +569,7 @@ void ReadVideos(const std::string& yaml_path, const YAML::Node& root, std::vecto
 // params.bin of `dir` into the model's blocks, after checking its magic and
 // that its value count is `expected_count` (model.yaml's) and the model's.
 void ReadParameters(const std::string& dir, const std::string& yaml_path, uint64_t expected_count,
-                    Model* model) {
+                    const std::string& checksum, Model* model) {
   const std::string params_path = dir + "/params.bin";
   const std::string params = ReadFile(params_path);
   uint64_t count = 0;
@@ -540,6 +585,15 @@ void ReadParameters(const std::string& dir, const std::string& yaml_path, uint64
     ThrowInputError(params_path, ": holds ", count, " values (", params.size(),
                     " bytes), expected ", model_count, " for the model in ", yaml_path,
                     " (the files are damaged or from different saves)", kWhatToDo);
+  }
+  // After the structural checks (their messages say more). Files written before the checksum
+  // existed have none (and are accepted).
+  if (!checksum.empty()) {
+    try {
+      VerifyChecksum(params_path, params, checksum, yaml_path, "params_checksum");
+    } catch (const InputError& e) {
+      ThrowInputError(e.what(), kWhatToDo);
+    }
   }
   const char* p = params.data() + sizeof(kMagic) + sizeof(count);
   model->ForEachBlock([&](const std::string&, double* data, int size) {
@@ -577,6 +631,8 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   }
   uint64_t expected_count = 0;
   ReadRequired(yaml_path, root, "parameters", &expected_count);
+  std::string params_checksum;
+  if (!legacy) ReadOptional(yaml_path, "", root, "params_checksum", &params_checksum);
   std::string root_correction = "camera";  // files written before the key existed
   ReadOptional(yaml_path, "", root, "root_correction", &root_correction);
   if (root_correction != kRootCorrectionObjectSide && root_correction != "camera") {
@@ -607,7 +663,7 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
     }
     model->set_canonical_bounds(Eigen::AlignedBox3d(lo, hi));
   }
-  ReadParameters(dir, yaml_path, expected_count, model.get());
+  ReadParameters(dir, yaml_path, expected_count, params_checksum, model.get());
   if (root_correction != kRootCorrectionObjectSide) ObjectSideRootCorrections(model.get());
   return model;
 }

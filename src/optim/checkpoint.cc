@@ -8,7 +8,9 @@
 
 #include "banmo/model/model_file.h"
 #include "banmo/util/atomic_file.h"
+#include "banmo/util/checksum.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -19,26 +21,20 @@ namespace {
 constexpr char kCheckpointFormat[] = "banmo-checkpoint-3";
 constexpr char kCheckpointFormatV2[] = "banmo-checkpoint-2";
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string ReadFile(const std::string& path) { return ReadRegularFile(path); }
 
 // Stage, batch and config of checkpoint.yaml, or of model.yaml in a
 // checkpoint written before the model file existed.
 CheckpointInfo ReadInfo(const std::string& dir) {
   std::string path = dir + "/checkpoint.yaml";
   std::string expected_format = kCheckpointFormat;
-  if (!std::filesystem::exists(path)) {
+  if (!PathExists(path)) {
     path = dir + "/model.yaml";
     expected_format = kLegacyCheckpointFormat;
   }
   CheckpointInfo info;
   try {
-    const YAML::Node root = YAML::LoadFile(path);
+    const YAML::Node root = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes));
     const std::string format = root["format"].as<std::string>();
     const bool known = format == expected_format ||
                        (expected_format == kCheckpointFormat && format == kCheckpointFormatV2);
@@ -58,6 +54,20 @@ CheckpointInfo ReadInfo(const std::string& dir) {
   return info;
 }
 
+// checkpoint.yaml's state_checksum ("" if absent or a legacy checkpoint).
+std::string ReadStateChecksum(const std::string& dir) {
+  const std::string path = dir + "/checkpoint.yaml";
+  if (!PathExists(path)) return "";
+  try {
+    const YAML::Node root = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes));
+    const YAML::Node checksum = root["state_checksum"];
+    return checksum ? checksum.as<std::string>() : "";
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(path, ": malformed key 'state_checksum' (", e.what(),
+                    "): the file is damaged; solve again (without --resume)");
+  }
+}
+
 }  // namespace
 
 void SaveCheckpoint(const std::string& final_dir, const Model& model, const CheckpointInfo& info,
@@ -71,18 +81,27 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
   std::error_code ec;
   fs::remove_all(dir, ec);
   MakeDirectories(dir);
-  WriteModelFiles(dir, model);
+  // A failed write (full disk) leaves no checkpoint.tmp behind.
+  try {
+    WriteModelFiles(dir, model);
 
-  YAML::Emitter out;
-  out << YAML::BeginMap;
-  out << YAML::Key << "format" << YAML::Value << kCheckpointFormat;
-  out << YAML::Key << "stage" << YAML::Value << info.stage;
-  out << YAML::Key << "batch" << YAML::Value << info.batch;
-  out << YAML::Key << "config" << YAML::Value << YAML::Literal << info.config;
-  out << YAML::EndMap;
-  CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
-  WriteFileAtomic(dir + "/checkpoint.yaml", std::string(out.c_str()) + "\n");
-  if (!solver_state.empty()) WriteFileAtomic(dir + "/state.bin", solver_state);
+    YAML::Emitter out;
+    out << YAML::BeginMap;
+    out << YAML::Key << "format" << YAML::Value << kCheckpointFormat;
+    out << YAML::Key << "stage" << YAML::Value << info.stage;
+    out << YAML::Key << "batch" << YAML::Value << info.batch;
+    if (!solver_state.empty()) {
+      out << YAML::Key << "state_checksum" << YAML::Value << ContentChecksum(solver_state);
+    }
+    out << YAML::Key << "config" << YAML::Value << YAML::Literal << info.config;
+    out << YAML::EndMap;
+    CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
+    WriteFileAtomic(dir + "/checkpoint.yaml", std::string(out.c_str()) + "\n");
+    if (!solver_state.empty()) WriteFileAtomic(dir + "/state.bin", solver_state);
+  } catch (...) {
+    fs::remove_all(dir, ec);
+    throw;
+  }
 
   const std::string old = final_dir + ".old";
   fs::remove_all(old, ec);
@@ -115,7 +134,13 @@ std::unique_ptr<Model> LoadCheckpoint(const std::string& requested_dir, Checkpoi
   if (info != nullptr) *info = ReadInfo(dir);
   if (solver_state != nullptr) {
     const std::string state_path = dir + "/state.bin";
-    *solver_state = std::filesystem::exists(state_path) ? ReadFile(state_path) : std::string();
+    *solver_state = PathExists(state_path) ? ReadFile(state_path) : std::string();
+    // Checkpoints written before the checksum existed have none (accepted).
+    const std::string checksum = ReadStateChecksum(dir);
+    if (!solver_state->empty() && !checksum.empty()) {
+      VerifyChecksum(state_path, *solver_state, checksum, dir + "/checkpoint.yaml",
+                     "state_checksum");
+    }
   }
   return model;
 }

@@ -25,6 +25,7 @@
 #include "banmo/model/model_options_fields.h"
 #include "banmo/util/error.h"
 #include "banmo/util/format.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -574,6 +575,14 @@ class FieldWriter {
 
 // ---- Checking. ----
 
+// Limits of the configuration (docs/robustness.md): far above any useful
+// value, low enough that memory stays bounded and steps stay finite.
+constexpr int kMaxBatchRays = 1 << 16;
+constexpr int kMaxSamplesPerRay = 1024;
+constexpr long kMaxBatchSamples = 1L << 22;  // ~4M samples: a few GB of activations
+constexpr double kMaxLearningRate = 100.0;
+constexpr double kMaxLossWeight = 1e6;
+
 class Checker {
  public:
   explicit Checker(const std::string& source) : source_(source) {}
@@ -593,6 +602,13 @@ class Checker {
   }
   void NonNegative(const std::string& key, int v) const {
     if (v < 0) Fail(key, "expected an integer >= 0, got ", v);
+  }
+  // v in (0, max] (finite).
+  void PositiveAtMost(const std::string& key, double v, double max) const {
+    if (!(v > 0 && v <= max)) Fail(key, "expected a number in (0, ", max, "], got ", v);
+  }
+  void PositiveAtMost(const std::string& key, int v, int max) const {
+    if (!(v > 0 && v <= max)) Fail(key, "expected an integer in [1, ", max, "], got ", v);
   }
   void Fraction(const std::string& key, double v) const {
     if (!(v >= 0 && v <= 1)) Fail(key, "expected a fraction in [0, 1], got ", v);
@@ -629,14 +645,23 @@ class Checker {
 
 void CheckLoss(const Checker& c, const std::string& key, const LossConfig& loss) {
   c.NonNegative(key + ".weight", loss.weight);
+  if (loss.weight > kMaxLossWeight) {
+    c.Fail(key + ".weight", "expected at most ", kMaxLossWeight, ", got ", loss.weight);
+  }
   c.Positive(key + ".robust.scale", loss.robust.scale);
 }
 
 void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   if (s.name.empty()) c.Fail(p + ".name", "expected a non-empty name");
   c.Positive(p + ".batches", s.batches);
-  c.Positive(p + ".batch_rays", s.batch_rays);
-  c.Positive(p + ".samples_per_ray", s.samples_per_ray);
+  c.PositiveAtMost(p + ".batch_rays", s.batch_rays, kMaxBatchRays);
+  c.PositiveAtMost(p + ".samples_per_ray", s.samples_per_ray, kMaxSamplesPerRay);
+  if (static_cast<long>(s.batch_rays) * (s.samples_per_ray + s.sampling.importance_samples) >
+      kMaxBatchSamples) {
+    c.Fail(p + ".batch_rays", "batch_rays x (samples_per_ray + sampling.importance_samples) = ",
+           static_cast<long>(s.batch_rays) * (s.samples_per_ray + s.sampling.importance_samples),
+           " samples per batch, expected at most ", kMaxBatchSamples);
+  }
 
   const std::string l = p + ".losses";
   bool any_loss = false;
@@ -670,7 +695,7 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   }
 
   const std::string a = p + ".adam";
-  c.Positive(a + ".lr", s.adam.lr);
+  c.PositiveAtMost(a + ".lr", s.adam.lr, kMaxLearningRate);
   if (!(s.adam.beta1 >= 0 && s.adam.beta1 < 1)) {
     c.Fail(a + ".beta1", "expected a number in [0, 1), got ", s.adam.beta1);
   }
@@ -681,9 +706,9 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   c.NonNegative(a + ".weight_decay", s.adam.weight_decay);
   c.Fraction(a + ".warmup_fraction", s.adam.warmup_fraction);
   c.Fraction(a + ".final_lr_fraction", s.adam.final_lr_fraction);
-  c.Positive(a + ".pose_lr_scale", s.adam.pose_lr_scale);
-  c.Positive(a + ".bone_lr_scale", s.adam.bone_lr_scale);
-  c.Positive(a + ".beta_lr_scale", s.adam.beta_lr_scale);
+  c.PositiveAtMost(a + ".pose_lr_scale", s.adam.pose_lr_scale, kMaxLearningRate);
+  c.PositiveAtMost(a + ".bone_lr_scale", s.adam.bone_lr_scale, kMaxLearningRate);
+  c.PositiveAtMost(a + ".beta_lr_scale", s.adam.beta_lr_scale, kMaxLearningRate);
   c.NonNegative(a + ".bone_basis", s.adam.bone_basis);
   c.NonNegative(a + ".root_basis", s.adam.root_basis);
 
@@ -706,6 +731,10 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   }
   c.Fraction(g + ".active_fraction", s.sampling.active_fraction);
   c.NonNegative(g + ".importance_samples", s.sampling.importance_samples);
+  if (s.sampling.importance_samples > kMaxSamplesPerRay) {
+    c.Fail(g + ".importance_samples", "expected at most ", kMaxSamplesPerRay, ", got ",
+           s.sampling.importance_samples);
+  }
   if (s.sampling.importance_samples > 0 && !s.sampling.importance_depth) {
     c.Fail(g + ".importance_samples", "needs sampling.importance_depth: true (got ",
            s.sampling.importance_samples, " added samples without the importance pass)");
@@ -723,8 +752,8 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
   for (size_t i = 0; i < s.sampling.flow_gaps.size(); ++i) {
     c.Positive(g + ".flow_gaps[" + std::to_string(i) + "]", s.sampling.flow_gaps[i]);
   }
-  c.Positive(g + ".eikonal_points", s.sampling.eikonal_points);
-  c.Positive(g + ".match_grid_points", s.sampling.match_grid_points);
+  c.PositiveAtMost(g + ".eikonal_points", s.sampling.eikonal_points, kMaxBatchRays);
+  c.PositiveAtMost(g + ".match_grid_points", s.sampling.match_grid_points, kMaxBatchRays);
   c.Positive(g + ".match_top_k", s.sampling.match_top_k);
   c.NonNegative(g + ".frames_per_batch", s.sampling.frames_per_batch);
   if (s.sampling.unbiased_silhouette &&
@@ -852,12 +881,7 @@ SamplingConfig SamplingAt(const StageConfig& stage, double fraction) {
 }
 
 SolverConfig LoadSolverConfig(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open the config file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) ThrowInputError(path, ": cannot read the config file");
-  return ParseSolverConfig(text.str(), path);
+  return ParseSolverConfig(ReadRegularFile(path, kMaxTextFileBytes, " (the config file)"), path);
 }
 
 SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& source) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -94,6 +95,11 @@ Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
   if (sampling.clip_to_box) {
     ClipDepthsToBox(camera_from_root, canonical_bounds, sampling.clip_margin, k, ray.uv, &near,
                     &far);
+  }
+  if (!(std::isfinite(near) && std::isfinite(far) && near < far)) {
+    ThrowDivergenceError("the near/far planes (", near, ", ", far, ") of video ", v, " frame ", t,
+                         " are not finite and increasing (its root pose or the canonical bounds "
+                         "are not finite or too large)");
   }
   ray.samples =
       StratifiedSamples(samples_per_ray, near, far, RayDirectionLength(k, ray.uv), true, rng);

@@ -26,6 +26,7 @@
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
 #include "banmo/volume/ray_samples.h"
+#include "divergence_guard.h"
 #include "solver_state.h"
 #include "stage_problem.h"
 #include "step_rules.h"
@@ -83,7 +84,21 @@ SolveResult Solver::Run(const SolveOptions& options) {
     if (bytes.empty()) ThrowInputError(options.out_dir, "/checkpoint: no solver state to resume");
     state.Deserialize(bytes);
     bounds_ = state.bounds;
+    // stage == number of stages: every stage done (the final checkpoint).
+    const int stages = static_cast<int>(config_.stages.size());
+    for (const auto& [stage, batch] :
+         {std::pair(info.stage, info.batch), std::pair(state.stage, state.batch)}) {
+      if (stage < 0 || stage > stages || batch < 0 ||
+          (stage < stages && batch >= config_.stages[stage].batches) ||
+          (stage == stages && batch != 0)) {
+        ThrowInputError(options.out_dir, "/checkpoint: stage ", stage, ", batch ", batch,
+                        " is out of range for the config's ", stages,
+                        " stage(s) (checkpoint.yaml or state.bin is damaged, or from another "
+                        "config)");
+      }
+    }
   }
+  internal::CheckFlowGaps(config_, dataset_);
   // The model records how it is trained (saved with it, model/model_file.h).
   if (!config_.stages.empty()) {
     const StageConfig& last = config_.stages.back();
@@ -113,6 +128,12 @@ struct Solver::RunContext {
   ParameterGroupSet extra_constant;
   Timer run_timer;
   double callback_seconds = 0.0;  // time inside options.on_batch (excluded from timings)
+  // The divergence guard's last good state: the checkpoint on disk once one
+  // is written (or resumed from), else the run's start, kept in memory.
+  bool checkpoint_written = false;
+  std::vector<double> start_parameters;
+  SolverState start_state;
+  Eigen::AlignedBox3d start_bounds;
 };
 
 // One stage's progress, for the progress lines and the summary.
@@ -124,6 +145,8 @@ struct Solver::StageRun {
   Timer timer;
   double callback_start = 0.0;
   long rays_done = 0;
+  double first_total_loss = -1.0;  // the divergence guard's reference
+  bool warned_loss_rise = false;
   // Stage wall time without on_batch's own time.
   double Seconds(const RunContext& c) const {
     return timer.Seconds() - (c.callback_seconds - callback_start);
@@ -136,10 +159,43 @@ SolveResult Solver::RunStages(const SolveOptions& options, SolverState* state) {
   NameBlocks(&c);
   c.resolved_config = SolverConfigToYaml(config_);
   for (ParameterGroup g : options.extra_constant) c.extra_constant.Insert(g);
+  c.checkpoint_written = options.resume;
+  if (!options.out_dir.empty() && !options.resume) {
+    model_->ForEachBlock([&](const std::string&, double* data, int size) {
+      c.start_parameters.insert(c.start_parameters.end(), data, data + size);
+    });
+    c.start_state = *state;
+    c.start_bounds = bounds_;
+  }
   for (int s = state->stage; s < static_cast<int>(config_.stages.size()); ++s) {
     if (!RunStage(s, &c, &result)) break;
   }
   return result;
+}
+
+void Solver::StopOnDivergence(int stage, int batch_index, const std::string& what, RunContext* c) {
+  std::string note = "Nothing was written (no --out).";
+  if (!c->options.out_dir.empty()) {
+    const std::string where = c->options.out_dir + "/checkpoint";
+    if (c->checkpoint_written) {
+      note = where + " holds the last good state (the last checkpoint before the blow-up).";
+    } else {
+      // No checkpoint yet in this run: the run's start is the last good state.
+      std::size_t i = 0;
+      model_->ForEachBlock([&](const std::string&, double* data, int size) {
+        std::copy(c->start_parameters.begin() + i, c->start_parameters.begin() + i + size, data);
+        i += size;
+      });
+      *c->state = c->start_state;
+      bounds_ = c->start_bounds;
+      c->sampler.set_error_cache(c->start_state.error_cache);
+      Save(c->start_state.stage, c->start_state.batch, c);
+      note = where + " holds the state the run started from.";
+    }
+  }
+  throw DivergenceError(internal::DivergenceMessage(config_.stages[stage], stage,
+                                                    static_cast<int>(config_.stages.size()),
+                                                    batch_index, what, note));
 }
 
 void Solver::NameBlocks(RunContext* c) {
@@ -158,6 +214,7 @@ void Solver::Save(int stage, int batch_index, RunContext* c) {
   model_->set_canonical_bounds(bounds_);
   CheckpointInfo info{stage, batch_index, c->resolved_config};
   SaveCheckpoint(c->options.out_dir + "/checkpoint", *model_, info, state->Serialize());
+  c->checkpoint_written = true;
 }
 
 bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
@@ -200,7 +257,11 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
       result->stages.push_back(run.summary);
       return false;
     }
-    RunBatch(batch_index, &run, &sp, c, result);
+    try {
+      RunBatch(batch_index, &run, &sp, c, result);
+    } catch (const DivergenceError& e) {
+      StopOnDivergence(s, batch_index, e.what(), c);
+    }
   }
   sp.ClearMinibatch();
   // Registrations at the stage's end (`at` 1.0): after its last step, before
@@ -273,6 +334,15 @@ void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunConte
   step.block_names = &c->block_names;
   TakeStep(step, record_losses);
   sp->Restore();
+  internal::CheckFiniteAfterBatch(losses, *model_, bounds_, stage,
+                                  LearningRate(stage.adam, batch_index, stage.batches));
+  if (internal::LossRoseSharply(losses, &run->first_total_loss) && !run->warned_loss_rise) {
+    run->warned_loss_rise = true;
+    LOG(WARNING) << "[" << stage.name << "] batch " << batch_index + 1 << ": the total loss rose "
+                 << "above " << internal::kLossRiseFactor << " x its value at the stage's first "
+                 << "batch (" << run->first_total_loss << "): the solve may be diverging; lower "
+                 << "adam.lr or the largest loss weight if it does not recover";
+  }
 
   run->rays_done += batch.num_rays();
   ++state->total_batches;

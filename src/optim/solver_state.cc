@@ -15,6 +15,15 @@ template <typename T>
 void Append(std::string* out, const T& v) {
   AppendPod(out, &v, sizeof(T));
 }
+// Throws unless `count` items of `item_bytes` each remain after *pos: a
+// damaged length field must not allocate (or read) beyond the file.
+void NeedBytes(const std::string& in, size_t pos, uint64_t count, size_t item_bytes) {
+  if (pos > in.size() || count > (in.size() - pos) / item_bytes) {
+    ThrowInputError("checkpoint state.bin: truncated or damaged (a length of ", count,
+                    " items at byte ", pos, " runs past the end of the file)");
+  }
+}
+
 template <typename T>
 T Read(const std::string& in, size_t* pos) {
   if (*pos + sizeof(T) > in.size()) ThrowInputError("checkpoint state.bin: truncated");
@@ -61,16 +70,20 @@ void SolverState::Deserialize(const std::string& in) {
   total_batches = Read<int>(in, &pos);
   lm_radius = Read<double>(in, &pos);
   const uint64_t rn = Read<uint64_t>(in, &pos);
+  NeedBytes(in, pos, rn, 1);
   std::istringstream rs(in.substr(pos, rn));
   rs >> rng;
+  if (rs.fail()) ThrowInputError("checkpoint state.bin: damaged random-number state");
   pos += rn;
   const uint64_t na = Read<uint64_t>(in, &pos);
   adam.clear();
   for (uint64_t i = 0; i < na; ++i) {
     const uint64_t ln = Read<uint64_t>(in, &pos);
+    NeedBytes(in, pos, ln, 1);
     const std::string name = in.substr(pos, ln);
     pos += ln;
     const uint64_t n = Read<uint64_t>(in, &pos);
+    NeedBytes(in, pos, n, 2 * sizeof(double));
     Moments mo;
     mo.m.resize(n);
     mo.v.resize(n);
@@ -80,6 +93,7 @@ void SolverState::Deserialize(const std::string& in) {
     adam[name] = std::move(mo);
   }
   const uint64_t nc = Read<uint64_t>(in, &pos);
+  NeedBytes(in, pos, nc, sizeof(RaySampler::CachedPixel));
   error_cache.resize(nc);
   for (auto& c : error_cache) c = Read<RaySampler::CachedPixel>(in, &pos);
   Eigen::Vector3d lo, hi;

@@ -1,6 +1,7 @@
 #include "gltf_document.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include <utility>
 
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
 
 namespace banmo::synth::internal {
@@ -42,10 +44,123 @@ const std::set<std::string>& IgnorableExtensions() {
   return names;
 }
 
+// A .glb is parsed from memory with a 32-bit length; 1 GiB is far above any
+// model the rasteriser can use.
+constexpr std::uint64_t kMaxGltfBytes = std::uint64_t{1} << 30;
+
 std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) ThrowInputError(path, ": cannot open the glTF file");
-  return std::string(std::istreambuf_iterator<char>(in), {});
+  return ReadRegularFile(path, kMaxGltfBytes, " (the glTF file)");
+}
+
+// ---- External files: only inside the glTF's own folder. ----
+
+// tinygltf's URI decoding, exactly (dlib::urldecode in tiny_gltf.h): '+' is a
+// space, '%' and the next two characters are one byte (a character that is
+// not a hex digit counts as 0), so the checks see the path tinygltf opens.
+std::string UrlDecode(const std::string& s) {
+  auto hex = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return 0;
+  };
+  std::string out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '+') {
+      out += ' ';
+    } else if (s[i] == '%' && s.size() > i + 2) {
+      out += static_cast<char>((hex(s[i + 1]) << 4) | hex(s[i + 2]));
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+bool IsDataUri(const std::string& uri) { return uri.rfind("data:", 0) == 0; }
+
+// True if `p` (made canonical) is `folder` or below it.
+bool IsInside(const std::filesystem::path& p, const std::filesystem::path& folder) {
+  auto f = folder.begin();
+  auto q = p.begin();
+  for (; f != folder.end(); ++f, ++q) {
+    if (q == p.end() || *q != *f) return false;
+  }
+  return true;
+}
+
+// Why the decoded URI `uri` may not be opened from `folder`, or "".
+std::string UriProblem(const std::string& uri, const std::filesystem::path& folder) {
+  namespace fs = std::filesystem;
+  if (uri.empty() || uri == ".") return "it names no file";
+  if (uri.find('\0') != std::string::npos) return "it contains a NUL character";
+  if (uri[0] == '/' || uri[0] == '\\') return "absolute paths are not allowed";
+  const std::size_t colon = uri.find(':');
+  if (colon != std::string::npos && uri.find('/') > colon) {
+    return "URI schemes (file:, http:, ...) are not allowed; only relative file names and data: "
+           "URIs";
+  }
+  for (const fs::path& part : fs::path(uri)) {
+    if (part == "..") return "'..' may not leave the glTF's folder";
+  }
+  std::error_code ec;
+  const fs::path resolved = fs::weakly_canonical(folder / uri, ec);
+  if (ec) return "it cannot be resolved (" + ec.message() + ")";
+  if (!IsInside(resolved, folder)) return "it resolves outside the glTF's folder (symbolic link)";
+  if (fs::exists(resolved, ec) && !fs::is_regular_file(resolved, ec)) {
+    return "it is not a regular file (a folder, FIFO or device)";
+  }
+  return "";
+}
+
+// Refuses buffer and image URIs that would open anything but a regular file
+// inside `folder` (the canonical folder of the glTF file).
+void CheckUris(const std::string& path, const Json& doc, const std::filesystem::path& folder) {
+  for (const char* list : {"buffers", "images"}) {
+    const auto it = doc.find(list);
+    if (it == doc.end() || !it->is_array()) continue;
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const Json& entry = (*it)[i];
+      if (!entry.is_object() || !entry.contains("uri")) continue;
+      if (!entry["uri"].is_string())
+        ThrowInputError(path, ": ", list, "[", i, "].uri: expected a string");
+      const std::string uri = entry["uri"].get<std::string>();
+      if (IsDataUri(uri)) continue;
+      const std::string problem = UriProblem(UrlDecode(uri), folder);
+      if (!problem.empty()) {
+        ThrowInputError(path, ": ", list, "[", i, "].uri '", uri, "': ", problem,
+                        " (a glTF may refer only to files inside its own folder)");
+      }
+    }
+  }
+}
+
+// tinygltf file system callbacks that open only regular files inside the
+// folder given as user data (tinygltf also searches the working directory).
+bool FileExistsInside(const std::string& abs_filename, void* user_data) {
+  const auto& folder = *static_cast<const std::filesystem::path*>(user_data);
+  std::error_code ec;
+  const std::filesystem::path p = std::filesystem::weakly_canonical(abs_filename, ec);
+  return !ec && IsInside(p, folder) && std::filesystem::is_regular_file(p, ec);
+}
+
+std::string ExpandNothing(const std::string& path, void*) { return path; }
+
+bool ReadWholeFileInside(std::vector<unsigned char>* out, std::string* err,
+                         const std::string& filepath, void* user_data) {
+  if (!FileExistsInside(filepath, user_data)) {
+    if (err) *err += filepath + ": not a regular file inside the glTF's folder";
+    return false;
+  }
+  try {
+    const std::string bytes = ReadRegularFile(filepath, kMaxGltfBytes);
+    out->assign(bytes.begin(), bytes.end());
+    return true;
+  } catch (const InputError& e) {
+    if (err) *err += e.what();
+    return false;
+  }
 }
 
 uint32_t ReadU32(const std::string& bytes, std::size_t offset) {
@@ -162,7 +277,8 @@ const std::vector<std::string>& SupportedGltfExtensions() {
 }
 
 tinygltf::Model ReadGltfDocument(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) ThrowInputError(path, ": no such glTF file");
+  std::error_code exists_error;
+  if (!std::filesystem::exists(path, exists_error)) ThrowInputError(path, ": no such glTF file");
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
   if (ext != ".glb" && ext != ".gltf") ThrowInputError(path, ": expected a .glb or .gltf file");
@@ -175,13 +291,21 @@ tinygltf::Model ReadGltfDocument(const std::string& path) {
     ThrowInputError(path, ": cannot read glTF: the JSON part is not a valid JSON object");
   }
   CheckExtensions(path, doc);
+  std::error_code ec;
+  const std::filesystem::path folder =
+      std::filesystem::weakly_canonical(std::filesystem::absolute(path).parent_path(), ec);
+  if (ec) ThrowInputError(path, ": cannot resolve the glTF's folder (", ec.message(), ")");
+  CheckUris(path, doc, folder);
   const std::map<std::pair<int, int>, int> hidden = HideDracoIndices(&doc);
   if (!hidden.empty()) bytes = binary ? ReplaceGlbJson(bytes, json_end, doc.dump()) : doc.dump();
 
   tinygltf::Model model;
   tinygltf::TinyGLTF loader;
+  tinygltf::FsCallbacks callbacks = {&FileExistsInside, &ExpandNothing, &ReadWholeFileInside,
+                                     nullptr, const_cast<std::filesystem::path*>(&folder)};
+  loader.SetFsCallbacks(callbacks);
   std::string err, warn;
-  std::string base_dir = std::filesystem::absolute(path).parent_path().string();
+  const std::string base_dir = folder.string();
   bool ok = false;
   if (binary) {
     ok = loader.LoadBinaryFromMemory(&model, &err, &warn,

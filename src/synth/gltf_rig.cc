@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <map>
 #include <utility>
 
@@ -164,10 +165,15 @@ class GltfRigBuilder {
       }
       for (int c : n.children) {
         if (c < 0 || c >= NumNodes()) reader_.Fail("node ", i, " has a missing child ", c);
+        if (c == i) {
+          reader_.Fail("node ", i, " ('", node.name,
+                       "') lists itself as a child: the node graph has a cycle");
+        }
         if (rig_.nodes[c].parent >= 0) reader_.Fail("node ", c, " has two parents");
         rig_.nodes[c].parent = i;
       }
     }
+    CheckNodeTree();
     for (int i = 0; i < NumNodes(); ++i) {
       const tinygltf::Node& n = model_.nodes[i];
       if (n.mesh < 0) continue;
@@ -212,6 +218,19 @@ class GltfRigBuilder {
   }
 
   // Scene traversal order: nodes of the default scene (or all roots).
+  // Refuses a node graph with a cycle (a node that is its own ancestor),
+  // before anything walks the hierarchy.
+  void CheckNodeTree() const {
+    for (int i = 0; i < NumNodes(); ++i) {
+      int p = rig_.nodes[i].parent;
+      for (int steps = 0; p >= 0 && steps <= NumNodes(); ++steps) p = rig_.nodes[p].parent;
+      if (p >= 0) {
+        reader_.Fail("the node graph has a cycle: node ", i, " ('", rig_.nodes[i].name,
+                     "') is its own ancestor (glTF nodes must form trees)");
+      }
+    }
+  }
+
   std::vector<int> SceneOrder() const {
     std::vector<int> roots;
     const int scene = model_.defaultScene >= 0 ? model_.defaultScene : 0;
@@ -247,7 +266,7 @@ class GltfRigBuilder {
         reader_.Fail("skin ", s, ": expected one MAT4 inverse bind matrix per joint");
       }
     }
-    std::vector<int> ids;
+    std::vector<RigInfluence> infs;
     for (size_t j = 0; j < skin.joints.size(); ++j) {
       RigInfluence inf;
       inf.node = skin.joints[j];
@@ -255,10 +274,57 @@ class GltfRigBuilder {
       if (ibm.size() > 0) {
         for (int k = 0; k < 16; ++k) inf.inverse_bind(k % 4, k / 4) = ibm(k, j);
       }
+      infs.push_back(inf);
+    }
+    const Eigen::Matrix4d offset = SkinBindOffset(infs);
+    skin_offset_[s] = offset;
+    const Eigen::Matrix4d offset_inverse = offset.inverse();
+    std::vector<int> ids;
+    for (RigInfluence& inf : infs) {
+      inf.inverse_bind = inf.inverse_bind * offset_inverse;
       ids.push_back(static_cast<int>(rig_.influences.size()));
       rig_.influences.push_back(inf);
     }
     return skin_influences_[s] = ids;
+  }
+
+  // The matrix M that the joints of a skin apply to its mesh at the rest
+  // pose (rest_global[joint] * inverse_bind, the same for most joints), or
+  // the identity. Exporters such as FBX2glTF write skins with M = the mesh
+  // node's transform (a 90 degree turn and a 100x scale): the mesh at rest is
+  // then about M * POSITION, not POSITION. The loader stores rest vertices
+  // M * POSITION and inverse binds IBM * M^-1: every posed frame is exactly
+  // as before (M cancels), while the rest vertices, which the scene is
+  // normalised by, match the rest pose. M is the medoid of the joints'
+  // matrices; it is used only if at least half of the joints agree with it
+  // within 5 % (node rest poses differ from the bind pose by a few degrees
+  // in such files) and it is not within 5 % of the identity already.
+  Eigen::Matrix4d SkinBindOffset(const std::vector<RigInfluence>& infs) const {
+    const Eigen::Matrix4d identity = Eigen::Matrix4d::Identity();
+    const int n = static_cast<int>(infs.size());
+    if (n == 0) return identity;
+    std::vector<Eigen::Matrix4d> m(n);
+    for (int j = 0; j < n; ++j) m[j] = rest_global_[infs[j].node] * infs[j].inverse_bind;
+    int best = -1;
+    double best_sum = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < n; ++j) {
+      if (!m[j].allFinite()) continue;
+      double sum = 0;
+      for (int k = 0; k < n; ++k) sum += m[k].allFinite() ? (m[k] - m[j]).norm() : 0.0;
+      if (sum < best_sum) best = j, best_sum = sum;
+    }
+    if (best < 0) return identity;
+    const Eigen::Matrix4d& medoid = m[best];
+    const double tolerance = 0.05 * medoid.topLeftCorner<3, 3>().norm();
+    int agree = 0;
+    for (int j = 0; j < n; ++j) agree += (m[j] - medoid).norm() <= tolerance ? 1 : 0;
+    const bool affine = (medoid.row(3) - identity.row(3)).norm() <= 1e-6;
+    const double det = medoid.topLeftCorner<3, 3>().determinant();
+    if (2 * agree < n || !affine || !(std::abs(det) > 1e-12) ||
+        (medoid - identity).norm() <= 0.05 * std::sqrt(3.0)) {
+      return identity;
+    }
+    return medoid;
   }
 
   void AddMeshNode(int node_index) {
@@ -300,10 +366,13 @@ class GltfRigBuilder {
     return it == prim.attributes.end() ? -1 : it->second;
   }
 
-  // The bind-space transform of an unskinned mesh node (skinned: identity).
-  Eigen::Matrix4d ToRest(int node_index) const {
-    return model_.nodes[node_index].skin >= 0 ? Eigen::Matrix4d::Identity()
-                                              : rest_global_[node_index];
+  // The transform from a mesh node's POSITIONs to the rest pose: its global
+  // transform if unskinned, its skin's SkinBindOffset if skinned.
+  Eigen::Matrix4d ToRest(int node_index) {
+    const int skin = model_.nodes[node_index].skin;
+    if (skin < 0) return rest_global_[node_index];
+    SkinInfluences(skin);
+    return skin_offset_.at(skin);
   }
 
   // Positions, colours and UVs; returns the number of vertices added.
@@ -553,6 +622,7 @@ class GltfRigBuilder {
   std::vector<MaterialUv> material_uv_;
   int default_material_ = 0;
   std::map<int, std::vector<int>> skin_influences_;  // skin -> influence per joint
+  std::map<int, Eigen::Matrix4d> skin_offset_;       // skin -> SkinBindOffset
   // The mesh of all primitives, in scene order.
   std::vector<Eigen::Vector3d> positions_;
   std::vector<Eigen::Vector3f> colors_;

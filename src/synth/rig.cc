@@ -144,9 +144,12 @@ std::vector<Eigen::Matrix4d> NodeGlobalTransforms(const Rig& rig, const Animatio
     }
   }
   std::vector<Eigen::Matrix4d> global(n);
-  std::vector<char> done(n, 0);
+  std::vector<char> done(n, 0);  // 0: not yet, 1: in progress, 2: done
   std::function<void(int)> compute = [&](int i) {
-    if (done[i]) return;
+    if (done[i] == 2) return;
+    CHECK(done[i] == 0) << "the node hierarchy has a cycle through node " << i
+                        << " (Rig::Validate refuses such rigs)";
+    done[i] = 1;
     const Eigen::Matrix4d local = ComposeTrs(translation[i], rotation[i], scale[i]);
     const int p = rig.nodes[i].parent;
     if (p >= 0) {
@@ -155,7 +158,7 @@ std::vector<Eigen::Matrix4d> NodeGlobalTransforms(const Rig& rig, const Animatio
     } else {
       global[i] = local;
     }
-    done[i] = 1;
+    done[i] = 2;
   };
   for (int i = 0; i < n; ++i) compute(i);
   if (morph_weights != nullptr) *morph_weights = std::move(weights);

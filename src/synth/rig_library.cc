@@ -9,6 +9,7 @@
 #include "banmo/synth/gltf_rig.h"
 #include "banmo/synth/procedural_rig.h"
 #include "banmo/util/error.h"
+#include "banmo/util/input_file.h"
 
 namespace banmo::synth {
 namespace internal {
@@ -41,11 +42,7 @@ Rig LoadRig(const std::string& spec) {
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
   if (ext == ".glb" || ext == ".gltf") return LoadGltfRig(spec);
   if (ext == ".yaml" || ext == ".yml") {
-    std::ifstream in(spec);
-    if (!in) ThrowInputError(spec, ": cannot open rig file");
-    std::stringstream text;
-    text << in.rdbuf();
-    return BuildProceduralRig(text.str(), spec);
+    return BuildProceduralRig(ReadRegularFile(spec, kMaxTextFileBytes, " (the rig file)"), spec);
   }
   BuiltinRigYaml(spec);  // throws the "unknown rig" error listing the names
   ThrowInputError("unknown rig '", spec, "'");

@@ -375,7 +375,14 @@ FlowSample ComputeFlow(const PinholeCamera& camera, const Eigen::Matrix3Xi& face
   FlowSample s;
   s.flow = cv::Vec2f(static_cast<float>(uv[0] - (x + 0.5)), static_cast<float>(uv[1] - (y + 0.5)));
   s.valid = false;
-  if (p.z() < kMinProjectionDepth) return s;
+  // Behind the camera, or so close to its plane that the flow is beyond the
+  // dataset's half-float range: no correspondence; a finite placeholder.
+  constexpr float kMaxFlow = 60000;
+  if (p.z() < kMinProjectionDepth || !(std::abs(s.flow[0]) < kMaxFlow) ||
+      !(std::abs(s.flow[1]) < kMaxFlow)) {
+    s.flow = cv::Vec2f(0, 0);
+    return s;
+  }
   if (!(uv[0] >= 0 && uv[0] < camera.width && uv[1] >= 0 && uv[1] < camera.height)) return s;
   const int px = static_cast<int>(uv[0]), py = static_cast<int>(uv[1]);
   const int seen = target.raster.face.at<int>(py, px);

@@ -1,5 +1,8 @@
 #include "banmo/volume/volume_rendering.h"
 
+#include <cmath>
+
+#include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
@@ -7,7 +10,12 @@ namespace banmo {
 RaySamples StratifiedSamples(int num_samples, double near, double far, double dir_norm, bool jitter,
                              std::mt19937* rng) {
   CHECK_GT(num_samples, 0);
-  CHECK_LT(near, far);
+  // Non-finite or crossed planes come from non-finite poses or bounds (a
+  // diverged solve), not from a bug here: the solver's guard reports them.
+  if (!(std::isfinite(near) && std::isfinite(far) && near < far)) {
+    ThrowDivergenceError("near/far planes (", near, ", ", far,
+                         ") of a ray are not finite and increasing");
+  }
   RaySamples s;
   s.depths.resize(num_samples);
   s.deltas.resize(num_samples);

@@ -368,6 +368,10 @@ TEST(EvaluatePair, DenseGroundTruthBadInputsAreNamed) {
   options = DenseOptions();
   options.dense_samples = 10;
   EXPECT_NE(ErrorOf([&] { options.Check(); }).find("dense_samples"), std::string::npos);
+  // eval --dense-samples 2000000000 once grew to 6-7 GB (std::bad_alloc).
+  options.dense_samples = 2000000000;
+  EXPECT_NE(ErrorOf([&] { options.Check(); }).find("dense_samples: must be in [100, 10000000]"),
+            std::string::npos);
   EXPECT_NE(ErrorOf([] { ParseGtMode("sparse", "--gt-mode"); }).find("--gt-mode"),
             std::string::npos);
   EXPECT_EQ(ParseGtMode("dense"), GtMode::kDense);

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -403,6 +404,38 @@ TEST(WriteExtraction, FilesAreInDatasetUnits) {
   EXPECT_NE(json.str().find("\"scene_scale\": 0.25,"), std::string::npos) << json.str();
   EXPECT_NE(json.str().find("\"bounds_min\": [-0.25, -0.25, -0.25]"), std::string::npos)
       << json.str();
+  fs::remove_all(dir);
+}
+
+// A model whose last frame's root pose is NaN: the error comes at that
+// frame's mesh, after the canonical and earlier frame meshes were made;
+// nothing of the run may be left in the folder (issue 66: 34 frame meshes
+// and the canonical mesh were). A killed run's staging folder and
+// temporary files are removed by the next run.
+TEST(WriteExtraction, AFailingFrameLeavesNothingHalfWritten) {
+  auto model = SphereModel(3);
+  Pose& root = model->video(1).frames.back().root_delta;
+  root.setConstant(std::nan(""));
+  const std::string dir = TempDir("nan_frame");
+  fs::create_directories(dir + "/.extract.staging/frames");
+  std::ofstream(dir + "/.extract.staging/frames/old.ply") << "ply\n";
+  std::ofstream(dir + "/canonical.ply.tmp.123.456") << "";
+  std::ofstream(dir + "/keep.txt") << "not ours";
+  std::ofstream(dir + "/notes.tmp.txt") << "not ours either";
+  EXPECT_THROW(WriteExtraction(*model, Quick(24), dir), InputError);
+  std::vector<std::string> left;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    left.push_back(fs::relative(e.path(), dir).string());
+  }
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"keep.txt", "notes.tmp.txt"}));
+  // The same folder with a good model: every file in place.
+  root.setZero();
+  root[0] = 1;  // identity quaternion [qw qx qy qz]
+  WriteExtraction(*SphereModel(3), Quick(24), dir);
+  EXPECT_TRUE(fs::exists(dir + "/canonical.ply"));
+  EXPECT_TRUE(fs::exists(dir + "/frames"));
+  EXPECT_FALSE(fs::exists(dir + "/.extract.staging"));
   fs::remove_all(dir);
 }
 

@@ -420,7 +420,7 @@ TEST(CanonicalField, OptionsCheck) {
   o = CanonicalFieldOptions();
   o.position_encoding.num_bands = -2;
   EXPECT_FALSE(o.Check(&error));
-  EXPECT_EQ(error, "position_encoding.num_bands must be >= 0");
+  EXPECT_EQ(error, "position_encoding.num_bands must be in [0, 32], got -2");
 }
 
 }  // namespace

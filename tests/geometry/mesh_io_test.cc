@@ -82,6 +82,23 @@ TEST_F(MeshIo, ObjRoundTripAndExtensionDispatch) {
   EXPECT_THROW(WriteMesh(Path("t.stl"), mesh), InputError);
 }
 
+// Found by fuzz/fuzz_mesh.cc: an integer vertex coordinate made CGAL's PLY
+// reader dereference a null pointer (an assertion in debug builds).
+TEST_F(MeshIo, IntegerCoordinatesAndUnendedHeadersAreRefused) {
+  const std::string path =
+      WriteText("int.ply",
+                "ply\nformat ascii 1.0\nelement vertex 3\n"
+                "property float x\nproperty float y\nproperty uint32 z\n"
+                "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  EXPECT_EQ(ReadError(path),
+            path + ": PLY vertex property 'z' has type 'uint32', expected float or double");
+  const std::string open = WriteText("open.ply", "ply\nformat ascii 1.0\nelement vertex 3\n");
+  EXPECT_EQ(ReadError(open), open +
+                                 ": could not parse the mesh (expected a valid .ply file; no "
+                                 "end_header)");
+}
+
 TEST_F(MeshIo, AsciiPlyWithColoursAndQuadIsFanTriangulated) {
   const std::string path =
       WriteText("quad.ply",

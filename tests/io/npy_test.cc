@@ -63,6 +63,15 @@ TEST(Npy, DecodesSpecLayout) {
   for (int i = 0; i < 6; ++i) EXPECT_EQ(f.at<float>(i / 3, i % 3), static_cast<float>(i));
 }
 
+// Found by fuzz/fuzz_npy.cc: an empty array (a 0 in its shape) has no data
+// pointer, and copying its 0 bytes from there was undefined behaviour.
+TEST(Npy, EmptyArrayDecodesToAnEmptyMatrix) {
+  const std::string ref = WithDict("{'descr': '<f2', 'fortran_order': False, 'shape': (0, 3), }");
+  const std::string bytes = ref.substr(0, kDataOffset);  // no data bytes
+  const cv::Mat m = DecodeNpy(bytes, "test.npy");
+  EXPECT_TRUE(m.empty());
+}
+
 TEST(Npy, EncodeMatchesSpecLayout) {
   cv::Mat f(2, 3, CV_32F);
   for (int i = 0; i < 6; ++i) f.at<float>(i / 3, i % 3) = static_cast<float>(i);

@@ -398,5 +398,55 @@ TEST(ModelFile, CorruptFilesNameTheFileAndWhatToDo) {
   EXPECT_NE(missing.find("nonexistent: not a model folder"), std::string::npos) << missing;
 }
 
+// Sizes in model.yaml beyond the documented limits (docs/robustness.md)
+// are refused naming the file and key, before the model is allocated (a
+// num_bands of 32769 once grew to 6-7 GB and ended in std::bad_alloc).
+TEST(ModelFile, SizesBeyondTheLimitsAreRefusedByFileAndKey) {
+  const std::unique_ptr<Model> model = SmallModel(SmallOptions());
+  model->set_training_sampling(TrainingSampling{24, 0.15, true});
+  const fs::path dir = FreshDir("banmo_model_file_limits");
+  WriteModelFiles(dir.string(), *model);
+  const std::string yaml = ReadText(dir / "model.yaml");
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    const size_t at = yaml.find(from);
+    EXPECT_NE(at, std::string::npos) << from << " not in " << yaml;
+    std::string t = yaml;
+    if (at != std::string::npos) t.replace(at, from.size(), to);
+    return t;
+  };
+  const struct {
+    std::string from, to, expect;
+  } cases[] = {
+      {"num_bands: " + std::to_string(SmallOptions().field.position_encoding.num_bands),
+       "num_bands: 32769", "model.field.position_encoding.num_bands must be in [0, 32], got 32769"},
+      {"sdf_width: " + std::to_string(SmallOptions().field.sdf_width), "sdf_width: 100000",
+       "model.field.sdf_width must be in [1, 4096], got 100000"},
+      {"samples_per_ray: 24", "samples_per_ray: 100000", "samples_per_ray in [1, 1024]"},
+      {"frames: 2", "frames: 2000000000", "frames in [0, 100000]"},
+  };
+  for (const auto& c : cases) {
+    std::ofstream(dir / "model.yaml") << replaced(c.from, c.to);
+    const std::string error = LoadError(dir);
+    EXPECT_NE(error.find((dir / "model.yaml").string()), std::string::npos) << error;
+    EXPECT_NE(error.find(c.expect), std::string::npos) << c.to << ": " << error;
+  }
+}
+
+// A model folder (or its model.yaml) that is a symbolic link loop: an
+// error naming it (std::filesystem::exists threw: exit 3).
+TEST(ModelFile, SymlinkLoopsAreNamed) {
+  const fs::path dir = FreshDir("banmo_model_file_loop");
+  fs::create_symlink(dir / "b", dir / "a");
+  fs::create_symlink(dir / "a", dir / "b");
+  std::string error = LoadError(dir / "a");
+  EXPECT_NE(error.find("Too many levels of symbolic links"), std::string::npos) << error;
+  fs::create_directories(dir / "m");
+  fs::create_symlink("model.yaml", dir / "m" / "model.yaml");
+  error = LoadError(dir / "m");
+  EXPECT_NE(error.find((dir / "m" / "model.yaml").string() + ": cannot open file (Too many levels"),
+            std::string::npos)
+      << error;
+}
+
 }  // namespace
 }  // namespace banmo

@@ -656,10 +656,10 @@ TEST(SolverConfig, AlternateNeedsPoseSolvesForItsPerFrameBlocks) {
 TEST(SolverConfig, ConstraintErrorsFromYamlGiveTheLine) {
   // The key itself.
   EXPECT_EQ(ParseError("stages:\n  - name: a\n  - adam:\n      lr: -1\n"),
-            "test.yaml: stages[1].adam.lr: expected a finite number > 0, got -1 (line 4)");
+            "test.yaml: stages[1].adam.lr: expected a number in (0, 100], got -1 (line 4)");
   // A value inherited from defaults: the line in `defaults:`.
   EXPECT_EQ(ParseError("defaults:\n  batch_rays: 0\nstages:\n  - name: a\n"),
-            "test.yaml: stages[0].batch_rays: expected an integer > 0, got 0 (line 2)");
+            "test.yaml: stages[0].batch_rays: expected an integer in [1, 65536], got 0 (line 2)");
   // A key not written: its nearest written parent.
   EXPECT_EQ(ParseError("stages:\n  - name: a\n    sampling: {match_grid_points: 8}\n"),
             "test.yaml: stages[0].sampling.match_top_k: expected <= sampling.match_grid_points "
@@ -672,7 +672,7 @@ TEST(SolverConfig, ConstraintErrorsFromYamlGiveTheLine) {
             std::string::npos);
   // Model keys.
   EXPECT_EQ(ParseError("stages: [{}]\nmodel:\n  field:\n    sdf_width: 0\n"),
-            "test.yaml: model.field.sdf_width must be > 0 (line 4)");
+            "test.yaml: model.field.sdf_width must be in [1, 4096], got 0 (line 4)");
 }
 
 TEST(SolverConfig, DefaultsMergeUnderEveryStage) {

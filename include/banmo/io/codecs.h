@@ -7,11 +7,20 @@
 
 namespace banmo {
 
+// Image size limits of the dataset format (docs/robustness.md), checked
+// before anything is allocated: a side of at most 16384 px, at most 2^25
+// pixels (32 Mpx, e.g. 8192 x 4096) per frame, and at most 2^28 pixels over
+// every frame of a dataset (~20 GB loaded with features and four flow gaps).
+inline constexpr int kMaxImageSide = 16384;
+inline constexpr long kMaxFramePixels = 1L << 25;
+inline constexpr long kMaxDatasetPixels = 1L << 28;
+
 // Whole file as bytes; throws InputError naming the path if it cannot be read.
 std::string ReadFileBytes(const std::string& path);
 
 // Width, height, bit depth and colour type from a PNG's IHDR chunk, without
-// decoding. Throws InputError naming `name` if `bytes` is not a PNG.
+// decoding. Throws InputError naming `name` if `bytes` is not a PNG or its
+// size is beyond kMaxImageSide / kMaxFramePixels.
 struct PngInfo {
   int width = 0;
   int height = 0;

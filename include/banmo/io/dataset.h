@@ -177,10 +177,16 @@ std::uintmax_t DirectoryBytes(const std::string& dir);
 // = "00007.png". Frame indices have five digits (at most 100000 frames).
 std::string FrameFileName(int index, const std::string& extension);
 
+// Largest |tx|, |ty|, |tz| of a root pose: far beyond any scene (synth's
+// --object-scale 100 puts cameras ~300 away), small enough that no near/far
+// plane overflows.
+inline constexpr double kMaxPoseTranslation = 1e6;
+
 // Reads a root-pose file: one line per frame, "qw qx qy qz tx ty tz"
 // (camera_from_root), '#' starts a comment line. Each quaternion must have
-// norm 1 +- 1e-3 (it is then normalised). Throws InputError naming the file
-// and line. If expected_lines >= 0 the number of pose lines must match.
+// norm 1 +- 1e-3 (it is then normalised), each translation component at
+// most kMaxPoseTranslation. Throws InputError naming the file and line. If
+// expected_lines >= 0 the number of pose lines must match.
 std::vector<Pose> ReadPoseFile(const std::string& path, int expected_lines = -1);
 // Writes poses in the same format (17 significant digits), atomically. Each
 // line of `comment` becomes a "# " line after the format header.

@@ -155,6 +155,11 @@ class Solver {
   void NameBlocks(RunContext* c);
   // Writes out_dir/checkpoint (nothing without out_dir).
   void Save(int stage, int batch_index, RunContext* c);
+  // The divergence guard's stop (optim/divergence_guard.h): leaves the last
+  // good state as the checkpoint and throws DivergenceError naming the
+  // stage, the batch and `what` blew up.
+  [[noreturn]] void StopOnDivergence(int stage, int batch_index, const std::string& what,
+                                     RunContext* c);
   // Canonical bounds from a coarse extraction of the current surface (10 %
   // margin, within [-2, 2]^3), checked against the masks
   // (optim/bounds_refresh.h, schedule.bounds_refresh_max_mask_loss);

@@ -15,6 +15,15 @@ class InputError : public std::runtime_error {
   explicit InputError(const std::string& message) : std::runtime_error(message) {}
 };
 
+// A numerical blow-up found by a guard: a non-finite loss, parameter or
+// near/far plane. The solver adds the stage and batch and stops; the command
+// line reports it like bad input (exit 2), since a configuration (learning
+// rate, loss weight) or the data drove the solve there.
+class DivergenceError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 namespace internal {
 inline void AppendAll(std::ostringstream&) {}
 template <typename First, typename... Rest>
@@ -31,6 +40,14 @@ template <typename... Args>
   std::ostringstream os;
   internal::AppendAll(os, std::forward<Args>(args)...);
   throw InputError(os.str());
+}
+
+// Throws DivergenceError with the arguments streamed into one message.
+template <typename... Args>
+[[noreturn]] void ThrowDivergenceError(Args&&... args) {
+  std::ostringstream os;
+  internal::AppendAll(os, std::forward<Args>(args)...);
+  throw DivergenceError(os.str());
 }
 
 }  // namespace banmo
