@@ -5,6 +5,7 @@
 // non-finite near/far planes are an error, not an abort. Configuration
 // limits are refused by key. Tiny solves: seconds.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -37,12 +38,18 @@ std::string Read(const std::string& path) {
 class DivergenceGuard : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = ::testing::TempDir() + "/divergence_test";
+    // One folder per process: ctest runs each test case in its own process,
+    // in parallel, and a shared folder would be removed under another.
+    dir_ = ::testing::TempDir() + "/divergence_test_" + std::to_string(::getpid());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     const auto s =
         testing::RunBanmo("synth --videos 1 --frames 4 --size 32 --gaps 1 --out " + dir_ + "/data");
     ASSERT_EQ(s.exit_code, 0) << s.out;
+  }
+  static void TearDownTestSuite() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
   }
 
   static testing::CommandResult Solve(const std::string& name, const std::string& defaults,
