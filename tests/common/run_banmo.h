@@ -17,13 +17,8 @@ struct CommandResult {
   std::string err;     // stderr, when it went to a file
 };
 
-// Runs `BANMO_BINARY <args>` through the shell. Without `stderr_path`,
-// stderr is merged into `out` (in the order it was printed); with it, stderr
-// is written to that file and read back into `err`, so `out` holds only what
-// the command printed to stdout.
-inline CommandResult RunBanmo(const std::string& args, const std::string& stderr_path = "") {
-  const std::string command = std::string(BANMO_BINARY) + " " + args +
-                              (stderr_path.empty() ? " 2>&1" : " 2>" + stderr_path);
+// Runs `command` through the shell; `out` holds what it printed to stdout.
+inline CommandResult RunShell(const std::string& command) {
   CommandResult result;
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) return result;
@@ -32,6 +27,16 @@ inline CommandResult RunBanmo(const std::string& args, const std::string& stderr
   while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) result.out.append(buffer, n);
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+// Runs `BANMO_BINARY <args>` through the shell. Without `stderr_path`,
+// stderr is merged into `out` (in the order it was printed); with it, stderr
+// is written to that file and read back into `err`, so `out` holds only what
+// the command printed to stdout.
+inline CommandResult RunBanmo(const std::string& args, const std::string& stderr_path = "") {
+  CommandResult result = RunShell(std::string(BANMO_BINARY) + " " + args +
+                                  (stderr_path.empty() ? " 2>&1" : " 2>" + stderr_path));
   if (!stderr_path.empty()) {
     std::ifstream in(stderr_path, std::ios::binary);
     result.err.assign(std::istreambuf_iterator<char>(in), {});

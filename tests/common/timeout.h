@@ -71,17 +71,8 @@ inline TimedError ErrorOfWithTimeout(const std::function<void()>& fn, double sec
 // `BANMO_BINARY <args>` (stderr merged into out) under coreutils' timeout:
 // exit code 124 (or 137 after the kill) if it did not finish in `seconds`.
 inline CommandResult RunBanmoWithTimeout(const std::string& args, int seconds = 60) {
-  const std::string command = "timeout -k 5 " + std::to_string(seconds) + " " +
-                              std::string(BANMO_BINARY) + " " + args + " 2>&1";
-  CommandResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) result.out.append(buffer, n);
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
+  return RunShell("timeout -k 5 " + std::to_string(seconds) + " " + std::string(BANMO_BINARY) +
+                  " " + args + " 2>&1");
 }
 
 }  // namespace banmo::testing
