@@ -76,8 +76,9 @@ bool ProcessMayBeAlive(long pid) {
 long StagePid(const std::string& suffix) {
   const std::size_t dash = suffix.find('-');
   if (dash == std::string::npos || dash == 0) return -1;
+  const std::string digits = suffix.substr(0, dash);  // `end` points into it
   char* end = nullptr;
-  const long pid = std::strtol(suffix.substr(0, dash).c_str(), &end, 10);
+  const long pid = std::strtol(digits.c_str(), &end, 10);
   return end != nullptr && *end == '\0' ? pid : -1;
 }
 
