@@ -15,17 +15,13 @@ namespace banmo {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::LoadAll;
 using testing::MakeGtMeshes;
 using testing::MakeSmallDataset;
 using testing::ReadText;
 using testing::TempDir;
 using testing::WriteText;
-
-LoadOptions LoadAll() {
-  LoadOptions o;
-  o.load_depth = true;
-  return o;
-}
+using testing::WriteValid;
 
 cv::Mat ToFloat(const cv::Mat& m) {
   cv::Mat f;
@@ -38,14 +34,6 @@ double MaxAbsDiff(const cv::Mat& a, const cv::Mat& b) {
 }
 
 // Writes a valid dataset with every kind of data into `dir`.
-std::string WriteValid(const TempDir& tmp, const WriteOptions& options = {}) {
-  const std::string dir = tmp.path() + "/ds";
-  const Dataset d = MakeSmallDataset();
-  const auto meshes = MakeGtMeshes(d);
-  WriteDataset(d, dir, options, &meshes);
-  return dir;
-}
-
 // Expects LoadDataset(dir) to throw an InputError whose message contains all
 // the fragments (the file name, what was expected).
 void ExpectLoadError(const std::string& dir, const std::vector<std::string>& fragments,

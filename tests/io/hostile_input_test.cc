@@ -21,25 +21,13 @@ namespace banmo {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::LoadAll;
 using testing::MakeGtMeshes;
 using testing::MakeSmallDataset;
 using testing::ReadText;
 using testing::TempDir;
 using testing::WriteText;
-
-LoadOptions LoadAll() {
-  LoadOptions o;
-  o.load_depth = true;
-  return o;
-}
-
-std::string WriteValid(const TempDir& tmp) {
-  const std::string dir = tmp.path() + "/ds";
-  const Dataset d = MakeSmallDataset();
-  const auto meshes = MakeGtMeshes(d);
-  WriteDataset(d, dir, WriteOptions(), &meshes);
-  return dir;
-}
+using testing::WriteValid;
 
 // The message of LoadDataset(dir)'s InputError, run with a time limit.
 std::string TimedLoadError(const std::string& dir) {

@@ -112,4 +112,20 @@ inline void WriteText(const std::string& path, const std::string& text) {
   out << text;
 }
 
+// Every optional part loaded (depth included).
+inline LoadOptions LoadAll() {
+  LoadOptions o;
+  o.load_depth = true;
+  return o;
+}
+
+// MakeSmallDataset with its ground-truth meshes written to tmp/ds.
+inline std::string WriteValid(const TempDir& tmp, const WriteOptions& options = {}) {
+  const std::string dir = tmp.path() + "/ds";
+  const Dataset d = MakeSmallDataset();
+  const auto meshes = MakeGtMeshes(d);
+  WriteDataset(d, dir, options, &meshes);
+  return dir;
+}
+
 }  // namespace banmo::testing
