@@ -122,19 +122,34 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
            static_cast<uint32_t>(pass) * static_cast<uint32_t>(num_pixels) +
            static_cast<uint32_t>(pixel);
   };
+  // The pixels whose rays are evaluated, with their [near, far] (clipped to
+  // the box with clip_to_box).
+  std::vector<int> pixels;
+  std::vector<Eigen::Vector2d> pixel_ranges;
+  pixels.reserve(num_pixels);
+  pixel_ranges.reserve(num_pixels);
+  for (int p = 0; p < num_pixels; ++p) {
+    const Eigen::Vector2d uv((p % width) + 0.5, (p / width) + 0.5);
+    Eigen::Vector2d clipped(near, far);
+    const bool hits = ClipDepthsToBox(camera_from_root, options.canonical_bounds,
+                                      options.clip_margin, k, uv, &clipped[0], &clipped[1]);
+    if (!hits && options.skip_rays_outside_box) continue;
+    pixels.push_back(p);
+    pixel_ranges.push_back(options.clip_to_box ? clipped : Eigen::Vector2d(near, far));
+  }
+  const int num_rays = static_cast<int>(pixels.size());
   std::vector<Ray> rays;
-  std::vector<Eigen::Vector2d> depth_ranges;  // each ray's [near, far], clipped to the box
   std::vector<const Ray*> ray_ptrs;
   std::vector<RayParameters> params;
   std::vector<RayEvaluation> evals;
-  for (int begin = 0; begin < num_pixels; begin += options.chunk_rays) {
-    const int end = std::min(num_pixels, begin + options.chunk_rays);
+  for (int begin = 0; begin < num_rays; begin += options.chunk_rays) {
+    const int end = std::min(num_rays, begin + options.chunk_rays);
     // The chunk's rays once: what changes between passes is only their samples.
     rays.assign(end - begin, Ray());
-    depth_ranges.assign(end - begin, Eigen::Vector2d(near, far));
-    for (int p = begin; p < end; ++p) {
+    for (int i = begin; i < end; ++i) {
+      const int p = pixels[i];
       const int x = p % width, y = p / width;
-      Ray& ray = rays[p - begin];
+      Ray& ray = rays[i - begin];
       ray.video = observed.video;
       ray.frame = observed.frame;
       ray.uv = Eigen::Vector2d(x + 0.5, y + 0.5);
@@ -143,11 +158,6 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
       if (observed.partner_frame >= 0) {
         const cv::Vec2d f = observed.flow.at<cv::Vec2d>(y, x);
         ray.flow = Eigen::Vector2d(f[0], f[1]);
-      }
-      if (options.clip_to_box) {
-        Eigen::Vector2d& range = depth_ranges[p - begin];
-        ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k, ray.uv,
-                        &range[0], &range[1]);
       }
     }
     ray_ptrs.resize(rays.size());
@@ -161,11 +171,11 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
         ray.mask = 0.0;
         ray.partner_frame = -1;
         ray.has_flow = false;
-        const Eigen::Vector2d& range = depth_ranges[r];
+        const Eigen::Vector2d& range = pixel_ranges[begin + r];
         const double dir_norm = RayDirectionLength(k, ray.uv);
         if (options.jitter_passes > 0) {
           // Offset: a stream apart from the same pixel's importance draws.
-          std::mt19937 jitter_rng(pixel_seed(pass, begin + static_cast<int>(r)) + 0x9e3779b9u);
+          std::mt19937 jitter_rng(pixel_seed(pass, pixels[begin + r]) + 0x9e3779b9u);
           ray.samples = StratifiedSamples(options.samples_per_ray, range[0], range[1], dir_norm,
                                           true, &jitter_rng);
         } else {
@@ -178,7 +188,7 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
         for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);
         batch.EvaluateRays(ray_ptrs, params, false, &evals);
         for (size_t r = 0; r < rays.size(); ++r) {
-          std::mt19937 rng(pixel_seed(pass, begin + static_cast<int>(r)));
+          std::mt19937 rng(pixel_seed(pass, pixels[begin + r]));
           ImportanceResample(evals[r].tau, options.importance_samples, &rays[r].samples, &rng,
                              options.min_sdf_sample ? &evals[r].sdf : nullptr);
         }
@@ -193,7 +203,7 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
       for (size_t r = 0; r < rays.size(); ++r) params[r] = batch.ModelParameters(rays[r]);
       batch.EvaluateRays(ray_ptrs, params, false, &evals);
       for (size_t r = 0; r < rays.size(); ++r) {
-        const int p = begin + static_cast<int>(r);
+        const int p = pixels[begin + r];
         const int x = p % width, y = p / width;
         const Ray& ray = rays[r];
         const RayEvaluation& ev = evals[r];

@@ -90,7 +90,8 @@ TEST(RenderFrame, EqualsTheFullJetReferenceResidualPlusObservation) {
   // tests/losses; rendered values are O(1).
   const Model& model = TrainedTinyModel();
   const Dataset& data = TinyQuadrupedDataset();
-  const FrameRenderOptions options = TinyRenderOptions(model);
+  FrameRenderOptions options = TinyRenderOptions(model);
+  options.skip_rays_outside_box = false;  // the corner pixels miss the box
   const int v = 0, t = 5;
   const ObservedFrame observed = ObserveFrame(data, v, t, 1);
   ASSERT_EQ(observed.partner_frame, 4);  // last frame: t - gap
@@ -185,6 +186,50 @@ TEST(RenderFrame, ChunkSizeDoesNotChangeTheResult) {
       ExpectSameImages(whole, parts, 1e-12,
                        std::to_string(chunk) + (importance ? " importance" : ""));
     }
+  }
+}
+
+TEST(RenderFrame, RaysOutsideTheBoxAreSkippedAndSawNothing) {
+  // skip_rays_outside_box: the pixels whose rays miss the widened canonical
+  // box render empty; every other pixel is the same as with every ray
+  // evaluated (seeds are per pixel; 1e-12 rounding as above), and the
+  // evaluated rays of the skipped pixels saw (almost) nothing: opacity below
+  // 0.01, the SDF's density more than the margin away from the surface.
+  const Model& model = TrainedTinyModel();
+  const ObservedFrame observed = ObserveFrame(TinyQuadrupedDataset(), 0, 3, 2);
+  for (const int passes : {0, 2}) {
+    FrameRenderOptions options = TinyRenderOptions(model);
+    options.importance = true;
+    options.jitter_passes = passes;
+    options.skip_rays_outside_box = false;
+    const RenderedFrame all = RenderFrame(model, observed, options);
+    options.skip_rays_outside_box = true;
+    const RenderedFrame skipped = RenderFrame(model, observed, options);
+    const Eigen::Vector4d& k = model.video(0).intrinsics;
+    double near, far;
+    NearFarPlanes(model.RootPose(0, 3), options.canonical_bounds, options.near_far_margin, &near,
+                  &far);
+    int outside = 0;
+    for (int y = 0; y < observed.rgb.rows; ++y) {
+      for (int x = 0; x < observed.rgb.cols; ++x) {
+        double n = near, f = far;
+        const bool hits =
+            ClipDepthsToBox(model.RootPose(0, 3), options.canonical_bounds, options.clip_margin, k,
+                            Eigen::Vector2d(x + 0.5, y + 0.5), &n, &f);
+        if (hits) {
+          EXPECT_LE(cv::norm(all.rgb.at<cv::Vec3d>(y, x) - skipped.rgb.at<cv::Vec3d>(y, x)), 1e-12);
+          EXPECT_NEAR(all.opacity.at<double>(y, x), skipped.opacity.at<double>(y, x), 1e-12);
+          continue;
+        }
+        ++outside;
+        EXPECT_EQ(skipped.opacity.at<double>(y, x), 0.0);
+        EXPECT_EQ(cv::norm(skipped.rgb.at<cv::Vec3d>(y, x)), 0.0);
+        EXPECT_LT(all.opacity.at<double>(y, x), 0.01) << x << "," << y << " passes " << passes;
+      }
+    }
+    // The case has pixels of both kinds.
+    EXPECT_GT(outside, 0);
+    EXPECT_LT(outside, observed.rgb.rows * observed.rgb.cols);
   }
 }
 

@@ -41,6 +41,14 @@ struct FrameRenderOptions {
   // largest side, as SamplingConfig::clip_to_box.
   bool clip_to_box = false;
   double clip_margin = 0.1;
+  // Rays that miss the canonical box widened by clip_margin times its
+  // largest side (ClipDepthsToBox) are not evaluated: their pixels render
+  // empty (rgb, opacity and flow 0). The box holds the surface
+  // (CanonicalBoundsFromSurface: its bounds + 10 %), so what is lost is the
+  // density the SDF leaves more than the margin away from it; it saves the
+  // rays of most of a real frame's pixels. false: every pixel's ray is
+  // evaluated, as the losses evaluate every sampled ray.
+  bool skip_rays_outside_box = true;
   // Canonical box whose depth range bounds the samples (non-empty);
   // CanonicalBoundsFromSurface (extract/extract.h) gives the solver's kind
   // of box.
