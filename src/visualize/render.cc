@@ -34,6 +34,12 @@ int PartnerFrame(int frame, int num_frames, int gap) {
 
 }  // namespace
 
+Eigen::AlignedBox3d RenderHitBox(const Model& model, const Eigen::AlignedBox3d& render_box) {
+  Eigen::AlignedBox3d box = render_box;
+  if (model.canonical_bounds()) box.extend(*model.canonical_bounds());
+  return box;
+}
+
 void FrameRenderOptions::Check() const {
   if (samples_per_ray <= 0) ThrowInputError("samples_per_ray: expected > 0, got ", samples_per_ray);
   if (!(near_far_margin >= 0.0)) {
@@ -123,19 +129,26 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
            static_cast<uint32_t>(pixel);
   };
   // The pixels whose rays are evaluated, with their [near, far] (clipped to
-  // the box with clip_to_box).
+  // the box with clip_to_box). A ray is skipped when it misses both the
+  // render's box and the box the solver sampled in (RaysMissBox).
+  const Eigen::AlignedBox3d hit_box = RenderHitBox(model, options.canonical_bounds);
   std::vector<int> pixels;
   std::vector<Eigen::Vector2d> pixel_ranges;
   pixels.reserve(num_pixels);
   pixel_ranges.reserve(num_pixels);
   for (int p = 0; p < num_pixels; ++p) {
     const Eigen::Vector2d uv((p % width) + 0.5, (p / width) + 0.5);
-    Eigen::Vector2d clipped(near, far);
-    const bool hits = ClipDepthsToBox(camera_from_root, options.canonical_bounds,
-                                      options.clip_margin, k, uv, &clipped[0], &clipped[1]);
-    if (!hits && options.skip_rays_outside_box) continue;
+    if (options.skip_rays_outside_box) {
+      double n = near, f = far;
+      if (!ClipDepthsToBox(camera_from_root, hit_box, options.clip_margin, k, uv, &n, &f)) continue;
+    }
+    Eigen::Vector2d range(near, far);
+    if (options.clip_to_box) {
+      ClipDepthsToBox(camera_from_root, options.canonical_bounds, options.clip_margin, k, uv,
+                      &range[0], &range[1]);
+    }
     pixels.push_back(p);
-    pixel_ranges.push_back(options.clip_to_box ? clipped : Eigen::Vector2d(near, far));
+    pixel_ranges.push_back(range);
   }
   const int num_rays = static_cast<int>(pixels.size());
   std::vector<Ray> rays;

@@ -16,6 +16,7 @@
 #include "banmo/extract/extract.h"
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/ray_reference.h"
+#include "banmo/optim/checkpoint.h"
 #include "banmo/util/error.h"
 #include "banmo/visualize/panels.h"
 #include "banmo/visualize/render.h"
@@ -190,32 +191,46 @@ TEST(RenderFrame, ChunkSizeDoesNotChangeTheResult) {
 }
 
 TEST(RenderFrame, RaysOutsideTheBoxAreSkippedAndSawNothing) {
-  // skip_rays_outside_box: the pixels whose rays miss the widened canonical
-  // box render empty; every other pixel is the same as with every ray
+  // skip_rays_outside_box: the pixels whose rays miss the widened hit box
+  // render empty; every other pixel is the same as with every ray
   // evaluated (seeds are per pixel; 1e-12 rounding as above), and the
   // evaluated rays of the skipped pixels saw (almost) nothing: opacity below
   // 0.01, the SDF's density more than the margin away from the surface.
-  const Model& model = TrainedTinyModel();
+  // The trained tiny model's box covers its whole 48 x 48 frames, so a copy
+  // records the surface's box as its trained one: the hit box is then the
+  // surface's, which some rays miss.
+  const std::string dir =
+      (fs::temp_directory_path() / ("banmo_render_hitbox_" + std::to_string(::getpid()))).string();
+  SaveCheckpoint(dir, TrainedTinyModel(), CheckpointInfo());
+  std::unique_ptr<Model> model = LoadCheckpoint(dir);
+  fs::remove_all(dir);
+  const FrameRenderOptions base = TinyRenderOptions(*model);
+  ASSERT_TRUE(model->canonical_bounds());
+  EXPECT_FALSE(base.canonical_bounds.contains(*model->canonical_bounds()));
+  // The hit box holds the render's box and the trained one.
+  EXPECT_TRUE(RenderHitBox(*model, base.canonical_bounds).contains(*model->canonical_bounds()));
+  model->set_canonical_bounds(base.canonical_bounds);
+  const Eigen::AlignedBox3d hit_box = RenderHitBox(*model, base.canonical_bounds);
+  EXPECT_TRUE(hit_box.isApprox(base.canonical_bounds));
   const ObservedFrame observed = ObserveFrame(TinyQuadrupedDataset(), 0, 3, 2);
   for (const int passes : {0, 2}) {
-    FrameRenderOptions options = TinyRenderOptions(model);
+    FrameRenderOptions options = base;
     options.importance = true;
     options.jitter_passes = passes;
     options.skip_rays_outside_box = false;
-    const RenderedFrame all = RenderFrame(model, observed, options);
+    const RenderedFrame all = RenderFrame(*model, observed, options);
     options.skip_rays_outside_box = true;
-    const RenderedFrame skipped = RenderFrame(model, observed, options);
-    const Eigen::Vector4d& k = model.video(0).intrinsics;
+    const RenderedFrame skipped = RenderFrame(*model, observed, options);
+    const Eigen::Vector4d& k = model->video(0).intrinsics;
     double near, far;
-    NearFarPlanes(model.RootPose(0, 3), options.canonical_bounds, options.near_far_margin, &near,
+    NearFarPlanes(model->RootPose(0, 3), options.canonical_bounds, options.near_far_margin, &near,
                   &far);
     int outside = 0;
     for (int y = 0; y < observed.rgb.rows; ++y) {
       for (int x = 0; x < observed.rgb.cols; ++x) {
         double n = near, f = far;
-        const bool hits =
-            ClipDepthsToBox(model.RootPose(0, 3), options.canonical_bounds, options.clip_margin, k,
-                            Eigen::Vector2d(x + 0.5, y + 0.5), &n, &f);
+        const bool hits = ClipDepthsToBox(model->RootPose(0, 3), hit_box, options.clip_margin, k,
+                                          Eigen::Vector2d(x + 0.5, y + 0.5), &n, &f);
         if (hits) {
           EXPECT_LE(cv::norm(all.rgb.at<cv::Vec3d>(y, x) - skipped.rgb.at<cv::Vec3d>(y, x)), 1e-12);
           EXPECT_NEAR(all.opacity.at<double>(y, x), skipped.opacity.at<double>(y, x), 1e-12);

@@ -41,11 +41,11 @@ struct FrameRenderOptions {
   // largest side, as SamplingConfig::clip_to_box.
   bool clip_to_box = false;
   double clip_margin = 0.1;
-  // Rays that miss the canonical box widened by clip_margin times its
+  // Rays that miss RenderHitBox (below) widened by clip_margin times its
   // largest side (ClipDepthsToBox) are not evaluated: their pixels render
-  // empty (rgb, opacity and flow 0). The box holds the surface
-  // (CanonicalBoundsFromSurface: its bounds + 10 %), so what is lost is the
-  // density the SDF leaves more than the margin away from it; it saves the
+  // empty (rgb, opacity and flow 0). That box holds the surface and every
+  // place the solver sampled, so what is lost is only density the training
+  // rays never reached or the SDF leaves far from its surface; it saves the
   // rays of most of a real frame's pixels. false: every pixel's ray is
   // evaluated, as the losses evaluate every sampled ray.
   bool skip_rays_outside_box = true;
@@ -109,6 +109,12 @@ struct RenderedFrame {
   cv::Mat opacity;         // CV_64FC1 sum_i tau_i
   cv::Mat flow;            // CV_64FC2 expected displacement to t' (Eqs. 6-7), 0 if no partner
 };
+
+// The box of skip_rays_outside_box: the render's canonical_bounds extended
+// by the box the solver sampled in when the model records it
+// (Model::canonical_bounds). A model whose density is a fog around a small
+// surface keeps its fog in the picture.
+Eigen::AlignedBox3d RenderHitBox(const Model& model, const Eigen::AlignedBox3d& render_box);
 
 // Renders every pixel of `observed`'s frame (image size = observed.rgb's).
 // The model is only read (RayBatch needs a mutable pointer for Ceres; its
