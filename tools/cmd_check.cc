@@ -35,12 +35,12 @@ void PrintNotes(const Dataset& dataset) {
     }
     bool all_same = v.frames.size() > 1;
     for (const Frame& f : v.frames) {
-      all_same = all_same && f.root_pose_init == v.frames[0].root_pose_init;
+      all_same = all_same && f.root_pose_init.head<4>() == v.frames[0].root_pose_init.head<4>();
     }
     if (all_same) {
       std::printf(
-          "note: video %s: every initial root pose is the same (banmo prepare without "
-          "--poses?): the solver starts every frame from it, unless "
+          "note: video %s: every initial root pose has the same rotation (banmo prepare "
+          "without --poses?): the solver starts every frame from it, unless "
           "model.root_init_registration registers the frames from their features%s\n",
           v.name.c_str(), v.present.features ? "" : " (this video has none)");
     }

@@ -21,8 +21,9 @@ int RunPrepare(int argc, char** argv) {
       "Prepare a dataset (docs/dataset.md) from a real video: frames from a video file or a "
       "folder of images, one mask per frame, optical flow computed with OpenCV's DIS flow "
       "(forward and backward for every gap) and occlusion from forward-backward consistency.\n"
-      "Without --poses, every root pose is the identity rotation with the object at "
-      "--distance along the camera's +z axis. Without --intrinsics, fx = fy = max(width, "
+      "Without --poses, every root pose is the identity rotation with the root origin at "
+      "--distance on the ray through the frame's mask centroid (--roots-on-axis: on the "
+      "optical axis). Without --intrinsics, fx = fy = max(width, "
       "height) and the principal point is the image centre. Without --features, the dataset "
       "has no feature files.\n"
       "Several videos: prepare the first into a new dataset, then each further one with "
@@ -68,6 +69,10 @@ int RunPrepare(int argc, char** argv) {
   app.add_option("--distance", options.default_distance,
                  "Object distance of the default root poses (scene units)")
       ->capture_default_str();
+  bool on_axis = false;
+  app.add_flag("--roots-on-axis", on_axis,
+               "Without --poses: put the root origin on the optical axis in every frame instead "
+               "of on the ray through the frame's mask centroid");
   options.max_size = 320;
   app.add_option("--max-size", options.max_size,
                  "Working resolution: frames whose longer side exceeds this many pixels are "
@@ -96,6 +101,7 @@ int RunPrepare(int argc, char** argv) {
                "in; the manifest is replaced last, so a failure leaves the dataset as it was)")
       ->excludes(overwrite_flag);
   CLI11_PARSE(app, argc, argv);
+  options.roots_on_mask_centroids = !on_axis;
 
   if (options.video_path.empty() && options.frames_dir.empty()) {
     ThrowInputError("banmo prepare: give --video FILE or --frames DIR");

@@ -507,6 +507,39 @@ void ScaleFrames(cv::Size size, const std::string& source, Video* video) {
 
 }  // namespace
 
+void PlaceRootsOnMaskCentroids(double distance, Video* video) {
+  const Eigen::Vector4d& k = video->camera.intrinsics;
+  const int n = static_cast<int>(video->frames.size());
+  std::vector<int> placed;  // frames with object pixels
+  for (int t = 0; t < n; ++t) {
+    Frame& f = video->frames[t];
+    const cv::Moments m = cv::moments(f.mask == kMaskObject, true);
+    if (m.m00 <= 0.0) continue;
+    const double u = m.m10 / m.m00 + 0.5, v = m.m01 / m.m00 + 0.5;
+    f.root_pose_init[kPoseT + 0] = distance * (u - k[2]) / k[0];
+    f.root_pose_init[kPoseT + 1] = distance * (v - k[3]) / k[1];
+    f.root_pose_init[kPoseT + 2] = distance;
+    placed.push_back(t);
+  }
+  if (placed.empty()) return;
+  for (int t = 0; t < n; ++t) {
+    const auto after = std::lower_bound(placed.begin(), placed.end(), t);
+    if (after != placed.end() && *after == t) continue;
+    int nearest;
+    if (after == placed.end()) {
+      nearest = placed.back();
+    } else if (after == placed.begin()) {
+      nearest = *after;
+    } else {
+      nearest = (t - *(after - 1) <= *after - t) ? *(after - 1) : *after;
+    }
+    for (int i = 0; i < 3; ++i) {
+      video->frames[t].root_pose_init[kPoseT + i] =
+          video->frames[nearest].root_pose_init[kPoseT + i];
+    }
+  }
+}
+
 Dataset PrepareDataset(const PrepareOptions& options) {
   options.Check();
   Timer timer;
@@ -537,6 +570,9 @@ Dataset PrepareDataset(const PrepareOptions& options) {
               << size.width << "x" << size.height << " (max size " << options.max_size << ")";
     ScaleFrames(size, frames.source, &video);
     for (int t = 0; t < static_cast<int>(rgb.size()); ++t) rgb[t] = video.frames[t].rgb;
+  }
+  if (options.poses_path.empty() && options.roots_on_mask_centroids) {
+    PlaceRootsOnMaskCentroids(options.default_distance, &video);
   }
   ComputeFlows(dataset.flow_gaps, options.flow, rgb, &video);
   LOG(INFO) << "prepare: flow for " << dataset.flow_gaps.size() << " gaps in " << timer.Seconds()

@@ -862,7 +862,7 @@ SynthScene RenderSyntheticScene(const Rig& rig, const SynthOptions& options,
   }
   if (options.object_scale != 1.0) ScaleScene(options.object_scale, &scene);
   if (options.realism == Realism::kCasual) {
-    // No rough root poses: what `banmo prepare` writes without --poses.
+    // No rough root poses: what `banmo prepare --roots-on-axis` writes without --poses.
     for (Video& video : scene.dataset.videos) {
       for (Frame& frame : video.frames) {
         frame.root_pose_init = PoseIdentity();

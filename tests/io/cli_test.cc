@@ -187,7 +187,7 @@ TEST(PrepareCommand, AddsVideosToOneDatasetThatChecks) {
   EXPECT_NE(c.out.find("video cat_walk: 5 frames"), std::string::npos) << c.out;
   // Prepared without --features and --poses: noted, not an error.
   EXPECT_NE(c.out.find("note: video video_001 has no pixel features"), std::string::npos) << c.out;
-  EXPECT_NE(c.out.find("note: video cat_walk: every initial root pose is the same"),
+  EXPECT_NE(c.out.find("note: video cat_walk: every initial root pose has the same rotation"),
             std::string::npos)
       << c.out;
   const std::string manifest = ReadText(ds + "/manifest.yaml");

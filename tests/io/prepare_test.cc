@@ -85,6 +85,42 @@ Sequence WriteSequence(const std::string& root) {
   return s;
 }
 
+TEST(Prepare, RootsOnMaskCentroids) {
+  // Four frames of 40 x 30 px, fx = 50, fy = 60, principal point (20, 15):
+  // a 4 x 2 px object at columns 4-7, rows 20-21 (centroid at pixel
+  // position (6, 21) with pixel centres at +0.5), one 1 px object at
+  // (30, 5) -> (30.5, 5.5), and two empty frames that take the nearest
+  // frame's translation. The root origin lands
+  // on the centroid's ray at the given depth; rotations are kept.
+  Video video;
+  video.camera.width = 40;
+  video.camera.height = 30;
+  video.camera.intrinsics = Eigen::Vector4d(50, 60, 20, 15);
+  video.frames.resize(4);
+  for (Frame& f : video.frames) {
+    f.mask = cv::Mat(30, 40, CV_8UC1, cv::Scalar(kMaskBackground));
+    f.root_pose_init = PoseIdentity();
+  }
+  video.frames[0].mask(cv::Rect(4, 20, 4, 2)).setTo(kMaskObject);
+  video.frames[0].mask.at<unsigned char>(0, 0) = kMaskIgnore;  // not the object
+  video.frames[3].mask.at<unsigned char>(5, 30) = kMaskObject;
+  video.frames[3].root_pose_init[kPoseQw] = 0.0;
+  video.frames[3].root_pose_init[kPoseQw + 1] = 1.0;
+  PlaceRootsOnMaskCentroids(2.0, &video);
+  auto expect_on_ray = [&](int t, double u, double v) {
+    const Pose& g = video.frames[t].root_pose_init;
+    EXPECT_NEAR(g[kPoseT + 2], 2.0, 1e-12) << t;
+    EXPECT_NEAR(50.0 * g[kPoseT] / g[kPoseT + 2] + 20.0, u, 1e-9) << t;
+    EXPECT_NEAR(60.0 * g[kPoseT + 1] / g[kPoseT + 2] + 15.0, v, 1e-9) << t;
+  };
+  expect_on_ray(0, 6.0, 21.0);
+  expect_on_ray(1, 6.0, 21.0);  // nearest: frame 0
+  expect_on_ray(2, 30.5, 5.5);  // nearest: frame 3
+  expect_on_ray(3, 30.5, 5.5);
+  EXPECT_EQ(video.frames[3].root_pose_init[kPoseQw + 1], 1.0);
+  EXPECT_EQ(video.frames[0].root_pose_init[kPoseQw], 1.0);
+}
+
 TEST(Prepare, DisFlowMatchesKnownMotion) {
   TempDir tmp;
   const Sequence seq = WriteSequence(tmp.path());

@@ -34,8 +34,14 @@ struct PrepareOptions {
   // Masks of another size than their frames: false = error naming both
   // sizes, true = resized to the frame size (nearest neighbour).
   bool resize_masks = false;
-  // Without a poses file: identity rotation, object this far along +z (scene units).
+  // Without a poses file: identity rotation, the root origin this far
+  // along +z (scene units) ...
   double default_distance = 3.0;
+  // ... and on the ray through the frame's mask centroid (true), so a
+  // subject that crosses the frame starts where its mask is: the silhouette
+  // term has little gradient for a rendered object that does not overlap
+  // its mask. false: on the optical axis in every frame.
+  bool roots_on_mask_centroids = true;
   int max_frames = 0;  // use at most this many frames from the start (0 = all)
   // Working resolution: frames whose longer side exceeds this many pixels
   // are scaled down to it (colour by area averaging, masks by a vote of the
@@ -56,6 +62,13 @@ struct PrepareOptions {
 // of another size than their frames (names both sizes), fewer than 2 frames
 // with a non-empty mask.
 Dataset PrepareDataset(const PrepareOptions& options);
+
+// Places the root origin of every frame of `video` (masks and intrinsics
+// set) on the ray through its mask centroid (pixel centres x + 0.5) at depth
+// `distance`, keeping the rotation: t = distance (K^-1 (u, v, 1)). Frames
+// without object pixels take the nearest frame's translation (the earlier
+// one on a tie).
+void PlaceRootsOnMaskCentroids(double distance, Video* video);
 
 // Converts one mask image (CV_8UC1) to kMaskBackground/Ignore/Object.
 // `binary_01` selects the 0/1 reading of kBinary. Throws InputError naming
