@@ -67,11 +67,11 @@ struct ModelOptions {
   bool recentre = true;
   AutoSizeOptions auto_size;  // automatic growth of B and the MLP widths
   // Temporal smoothing of the dataset's rough root poses before the model is
-  // made from them (`banmo solve`; optim/root_init_smoothing.h).
+  // made from them (`banmo solve`; registration/root_init_smoothing.h).
   RootSmoothingOptions root_init_smoothing;
   // Registration of the frames from their pixel features when the dataset
   // has no root poses (`banmo solve`, before the smoothing;
-  // optim/root_init_registration.h).
+  // registration/root_init_registration.h).
   RootRegistrationOptions root_init_registration;
 
   // Throws InputError naming the field on a violated constraint.

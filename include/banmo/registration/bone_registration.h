@@ -65,7 +65,7 @@
 #include "banmo/geometry/se3.h"
 #include "banmo/io/dataset.h"
 #include "banmo/model/model.h"
-#include "banmo/optim/config.h"
+#include "banmo/registration/bone_registration_config.h"
 
 namespace ceres {
 class CostFunction;

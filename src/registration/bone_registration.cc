@@ -1,4 +1,4 @@
-#include "banmo/optim/bone_registration.h"
+#include "banmo/registration/bone_registration.h"
 
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/cubic_interpolation.h>
@@ -19,9 +19,9 @@
 #include <random>
 
 #include "banmo/deform/bones.h"
-#include "banmo/eval/nearest_neighbors.h"
 #include "banmo/extract/extract.h"
 #include "banmo/geometry/camera.h"
+#include "banmo/geometry/nearest_neighbors.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/util/error.h"
 #include "banmo/util/median.h"

@@ -1,9 +1,9 @@
-// Bone motion registration on feature matches (optim/bone_registration.h):
+// Bone motion registration on feature matches (registration/bone_registration.h):
 // the residuals against direct computations, the z-buffer, the
 // mean-feature embedding and matches on a rendered point cloud, and the
 // per-frame fit recovering a known articulation from exact matches, and the
 // mask term (distance image, residual, a fit from the silhouette alone).
-#include "banmo/optim/bone_registration.h"
+#include "banmo/registration/bone_registration.h"
 
 #include <ceres/cost_function.h>
 #include <ceres/rotation.h>

@@ -1,4 +1,4 @@
-#include "banmo/optim/root_init_registration.h"
+#include "banmo/registration/root_init_registration.h"
 
 #include <ceres/ceres.h>
 
@@ -11,7 +11,7 @@
 #include "banmo/geometry/nearest_rotation.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/geometry/se3.h"
-#include "banmo/optim/root_init_smoothing.h"
+#include "banmo/registration/root_init_smoothing.h"
 #include "banmo/util/median.h"
 #include "banmo/util/parallel.h"
 
