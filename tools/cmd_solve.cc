@@ -11,6 +11,7 @@
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/load_options.h"
+#include "banmo/optim/retarget.h"
 #include "banmo/optim/solver.h"
 #include "banmo/registration/root_init.h"
 #include "banmo/registration/root_pose_error.h"
@@ -70,13 +71,13 @@ int RunSolve(int argc, char** argv) {
   }
   // Retargeting an automatically sized model: its grown sizes come from its
   // checkpoint, and nothing grows (the shared blocks are held constant).
-  const bool retarget_auto_sized = !retarget_dir.empty() && config.model.auto_size.enabled;
+  const bool retarget_auto_sized =
+      !retarget_dir.empty() && SwitchOffAutoSizeForRetarget(&config);  // optim/retarget.h
   if (retarget_auto_sized) {
     std::printf(
         "banmo solve: --retarget: model.auto_size switched off; bones and MLP widths "
         "from %s\n",
         retarget_dir.c_str());
-    config.model.auto_size.enabled = false;
   }
   if (resolution < 16 || resolution > 1024) {
     ThrowInputError("--resolution: expected 16..1024, got ", resolution);
@@ -133,13 +134,7 @@ int RunSolve(int argc, char** argv) {
   std::unique_ptr<Model> source;
   ModelOptions model_options = config.model;
   if (!retarget_dir.empty()) {
-    CheckpointInfo info;
-    source = LoadCheckpoint(retarget_dir, &info);
-    if (retarget_auto_sized) {
-      model_options.num_bones = source->num_bones();
-      model_options.field.sdf_width = source->options().field.sdf_width;
-      model_options.field.color_width = source->options().field.color_width;
-    }
+    source = LoadRetargetSource(retarget_dir, retarget_auto_sized, &model_options);
   }
   // The scene scale (docs/solver.md, "Scene scale"), estimated here when
   // auto so that the estimate can be reported.
@@ -161,10 +156,7 @@ int RunSolve(int argc, char** argv) {
   options.quiet = quiet;
   options.stop_after_batches = stop_after;
   if (source != nullptr) {
-    CopySharedParameters(*source, model.get(), retarget_dir);  // model/make_model.h
-    options.extra_constant = {ParameterGroup::kSdf,       ParameterGroup::kColor,
-                              ParameterGroup::kEmbedding, ParameterGroup::kLogBeta,
-                              ParameterGroup::kBones,     ParameterGroup::kDeltaSkinning};
+    ApplyRetarget(*source, retarget_dir, model.get(), &options);
     scale_origin = "from the --retarget model";
   }
   if (!resume) {

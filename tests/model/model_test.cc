@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -33,6 +35,44 @@ Model TinyModel(const ModelOptions& options) {
   camera.height = 12;
   camera.intrinsics = Eigen::Vector4d(20, 20, 8, 6);
   return Model(options, {2, 1}, {camera, camera});
+}
+
+// Model::BlockGroup: every block ForEachBlock names has the group the
+// solver gives it (optim/stage_problem.cc), root_init none.
+TEST(Model, BlockGroupOfEveryBlock) {
+  ModelOptions options = TinyOptions();
+  options.delta_skinning.enabled = true;
+  const Model model = TinyModel(options);
+  using G = ParameterGroup;
+  const std::map<std::string, G> expected = {{"sdf", G::kSdf},
+                                             {"color", G::kColor},
+                                             {"embedding", G::kEmbedding},
+                                             {"log_beta", G::kLogBeta},
+                                             {"bones", G::kBones},
+                                             {"delta_skinning", G::kDeltaSkinning},
+                                             {"rest_pose_code", G::kDeltaSkinning},
+                                             {"video1/intrinsics", G::kIntrinsics},
+                                             {"video1/appearance", G::kAppearance},
+                                             {"video0/frame1/root_delta", G::kRoot},
+                                             {"video0/frame1/bones_t", G::kBonesT},
+                                             {"video0/frame1/pose_code", G::kPoseCode}};
+  int blocks = 0, checked = 0;
+  model.ForEachBlock([&](const std::string& name, const double*, int) {
+    ++blocks;
+    const std::optional<G> group = Model::BlockGroup(name);
+    if (name.size() >= 9 && name.compare(name.size() - 9, 9, "root_init") == 0) {
+      EXPECT_FALSE(group.has_value()) << name;
+      return;
+    }
+    ASSERT_TRUE(group.has_value()) << name;
+    if (const auto e = expected.find(name); e != expected.end()) {
+      EXPECT_EQ(*group, e->second) << name;
+      ++checked;
+    }
+  });
+  EXPECT_EQ(checked, static_cast<int>(expected.size()));
+  EXPECT_EQ(blocks, 7 + 2 * 2 + 3 * 4);  // 2 videos of 2 and 1 frames
+  EXPECT_FALSE(Model::BlockGroup("video0/frame1/unknown").has_value());
 }
 
 TEST(Model, StartsAtIdentityTransformsWithBonesInsideTheSphere) {

@@ -41,6 +41,7 @@
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/model/auto_size_options.h"
+#include "banmo/model/parameter_group.h"
 #include "banmo/model/root_registration_options.h"
 #include "banmo/model/root_smoothing_options.h"
 #include "banmo/volume/density_model.h"
@@ -187,6 +188,11 @@ class Model {
   // The same blocks, read only.
   void ForEachBlock(
       const std::function<void(const std::string& name, const double* data, int size)>& fn) const;
+  // The parameter group of the block ForEachBlock names `name` (its last
+  // path component: "video3/frame12/root_delta" is kRoot; delta_skinning
+  // and rest_pose_code are kDeltaSkinning); none for root_init (data, not
+  // a parameter) or a name no block has.
+  static std::optional<ParameterGroup> BlockGroup(const std::string& name);
 
   // Size changes (automatic model sizing, optim/auto_size.h). Both move
   // the blocks they touch (any ceres::Problem holding them must drop them
