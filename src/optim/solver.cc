@@ -247,7 +247,7 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
     state->DropAdamMoments({ParameterGroup::kBonesT});
   }
   run.summary.name = stage.name;
-  StageProblem sp(model_.get(), stage, c->extra_constant);
+  StageProblem problem(model_.get(), stage, c->extra_constant);
   run.timer.Reset();
   run.callback_start = c->callback_seconds;
   c->Say(SolveMessageKind::kStage, stage, run.start,
@@ -268,15 +268,15 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
       return false;
     }
     try {
-      RunBatch(batch_index, &run, &sp, c, result);
+      RunBatch(batch_index, &run, &problem, c, result);
     } catch (const DivergenceError& e) {
       StopOnDivergence(s, batch_index, e.what(), c);
     }
   }
-  sp.ClearMinibatch();
+  problem.ClearMinibatch();
   // Registrations at the stage's end (`at` 1.0): after its last step, before
   // the checkpoint of the next stage.
-  RegisterBones(stage.batches, stage, &sp, c);
+  RegisterBones(stage.batches, stage, &problem, c);
   StageSummary& summary = run.summary;
   summary.batches = stage.batches - run.start;
   summary.seconds = run.Seconds(*c);
@@ -293,26 +293,26 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   return true;
 }
 
-void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunContext* c,
+void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* problem, RunContext* c,
                       SolveResult* result) {
   const StageConfig& stage = *run->stage;
   SolverState* state = c->state;
   const double fraction = static_cast<double>(batch_index) / std::max(1, stage.batches);
-  RunSchedules(batch_index, fraction, *run, sp, c, result);
+  RunSchedules(batch_index, fraction, *run, problem, c, result);
 
   // ---- The minibatch. ----
-  sp->ClearMinibatch();
-  sp->ScheduleGroups(batch_index);
-  std::vector<Ray> rays = SampleRays(stage, fraction, sp->batch(), &c->sampler, &state->rng);
+  problem->ClearMinibatch();
+  problem->ScheduleGroups(batch_index);
+  std::vector<Ray> rays = SampleRays(stage, fraction, problem->batch(), &c->sampler, &state->rng);
   const Eigen::Matrix3Xd grid =
       UniformPoints(bounds_, stage.sampling.match_grid_points, &state->rng);
-  sp->SetMinibatch(std::move(rays), grid, bounds_, &state->rng);
+  problem->SetMinibatch(std::move(rays), grid, bounds_, &state->rng);
 
   // ---- The step. ----
   // Losses at the batch's starting point, for progress and active sampling,
   // from the batch's value cache (Adam: filled by its gradient evaluation,
   // so no extra forward pass).
-  const RayBatch& batch = sp->batch();
+  const RayBatch& batch = problem->batch();
   TermLosses losses;
   auto record_losses = [&] {
     std::vector<double> errors(batch.num_rays(), 0.0);
@@ -333,14 +333,14 @@ void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunConte
     c->sampler.RecordErrors(batch.rays(), errors);
   };
   StepContext step;
-  step.problem = sp;
+  step.problem = problem;
   step.stage = &stage;
   step.state = state;
   step.batch = batch_index;
   step.adam_gradient_from_ceres = c->options.adam_gradient_from_ceres;
   step.block_names = &c->block_names;
   TakeStep(step, record_losses);
-  sp->Restore();
+  problem->Restore();
   internal::CheckFiniteAfterBatch(losses, *model_, bounds_, stage,
                                   LearningRate(stage.adam, batch_index, stage.batches));
   if (internal::LossRoseSharply(losses, &run->first_total_loss) && !run->warned_loss_rise) {
@@ -433,8 +433,8 @@ std::vector<Ray> Solver::SampleRays(const StageConfig& stage, double fraction,
 
 // Schedules fire at their batch also when a resumed run starts there:
 // checkpoints are written before a batch's schedules run.
-void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run, StageProblem* sp,
-                          RunContext* c, SolveResult* result) {
+void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
+                          StageProblem* problem, RunContext* c, SolveResult* result) {
   const StageConfig& stage = *run.stage;
   Model& model = *model_;
   if (stage.schedule.anneal_end_fraction > 0) {
@@ -448,7 +448,7 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
   }
   if (fraction >= stage.schedule.neus_from && model.options().density != DensityModel::kNeus) {
     model.SetDensity(DensityModel::kNeus);
-    sp->batch().Invalidate();  // cached values rendered with the old density
+    problem->batch().Invalidate();  // cached values rendered with the old density
     c->Say(SolveMessageKind::kEvent, stage, batch_index,
            StrPrintf("density: NeuS from batch %d on", batch_index));
   }
@@ -463,33 +463,33 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
       }
     }
   }
-  RegisterBones(batch_index, stage, sp, c);
+  RegisterBones(batch_index, stage, problem, c);
   // Automatic model sizing (optim/auto_size.h), first stage only.
   const AutoSizeOptions& auto_size = config_.model.auto_size;
   for (double at : auto_size.grow_at) {
     if (!auto_size.enabled || run.index != 0 || batch_index != stage.BatchAt(at)) {
       continue;
     }
-    Grow(batch_index, run, sp, c, result);
+    Grow(batch_index, run, problem, c, result);
   }
   bool solve_poses =
       stage.pose_solve.every > 0 && batch_index > 0 && batch_index % stage.pose_solve.every == 0;
   for (double at : stage.pose_solve.at)
     solve_poses = solve_poses || batch_index == stage.BatchAt(at);
-  if (solve_poses) SolvePoses(batch_index, run, sp, c, result);
+  if (solve_poses) SolvePoses(batch_index, run, problem, c, result);
 }
 
-void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, RunContext* c,
+void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
                         SolveResult* result) {
   const StageConfig& stage = *run.stage;
   FramePoseContext context;
-  context.batch = sp->batch().options();
+  context.batch = problem->batch().options();
   context.batch.weights[LossTerm::kCycle3d] = 0.0;  // no view of the pose
-  context.robust = sp->ray_robust();
-  context.delta_skinning = sp->batch().delta_skinning();
+  context.robust = problem->ray_robust();
+  context.delta_skinning = problem->batch().delta_skinning();
   context.match_grid = UniformPoints(bounds_, stage.sampling.match_grid_points, &c->state->rng);
   // The root only once the schedule frees it (root_free_from).
-  context.solve_root = !sp->ConfiguredConstant(ParameterGroup::kRoot) &&
+  context.solve_root = !problem->ConfiguredConstant(ParameterGroup::kRoot) &&
                        batch_index >= stage.BatchAt(stage.schedule.root_free_from);
   context.solve_bones = stage.pose_solve.bones && model_->num_bones() > 0;
   if (!context.solve_root && !context.solve_bones) return;
@@ -501,7 +501,7 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   // The solved blocks jumped: their Adam moments are stale.
   if (context.solve_root) c->state->DropAdamMoments({ParameterGroup::kRoot});
   if (context.solve_bones) c->state->DropAdamMoments({ParameterGroup::kBonesT});
-  sp->batch().Invalidate();
+  problem->batch().Invalidate();
   if (c->Says(SolveMessageKind::kEvent)) {
     std::string text = report.Describe();
     if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(*model_, dataset_)) {
@@ -513,7 +513,7 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   result->pose_solves.push_back(std::move(report));
 }
 
-void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProblem* sp,
+void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProblem* problem,
                            RunContext* c) {
   for (double at : stage.bone_registration.at) {
     if (model_->num_bones() == 0 || batch_index != stage.BatchAt(at)) continue;
@@ -525,7 +525,7 @@ void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProbl
         model_.get(), dataset_, bounds_, config, static_cast<uint32_t>(c->state->rng()));
     if (report.registered) {
       c->state->DropAdamMoments({ParameterGroup::kBonesT});  // the bone transforms jumped
-      sp->batch().Invalidate();
+      problem->batch().Invalidate();
     }
     c->Say(SolveMessageKind::kEvent, stage, batch_index, report.Describe());
   }
@@ -534,11 +534,11 @@ void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProbl
 // A grow step of automatic sizing: the problem drops every block, the model
 // grows, the blocks come back (new sizes and addresses) and the Adam moments
 // follow their entries.
-void Solver::Grow(int batch_index, const StageRun& run, StageProblem* sp, RunContext* c,
+void Solver::Grow(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
                   SolveResult* result) {
   const StageConfig& stage = *run.stage;
   Timer grow_timer;
-  sp->RemoveAllBlocks();
+  problem->RemoveAllBlocks();
   AutoSizeRemaps remaps;
   AutoSizeEvent event =
       AutoSizeGrow(config_.model.auto_size, c->sampler, stage.sampling, stage.samples_per_ray,
@@ -552,8 +552,8 @@ void Solver::Grow(int batch_index, const StageRun& run, StageProblem* sp, RunCon
     if (const TangentRemap* remap = remaps.For(name)) remap->Apply(&moments.m, &moments.v);
   }
   NameBlocks(c);
-  sp->AddModelBlocks();
-  sp->batch().Invalidate();
+  problem->AddModelBlocks();
+  problem->batch().Invalidate();
   event.seconds = grow_timer.Seconds();
   c->Say(SolveMessageKind::kEvent, stage, batch_index, event.Describe());
   result->auto_size.push_back(std::move(event));
