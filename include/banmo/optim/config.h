@@ -17,6 +17,7 @@
 #include "banmo/model/parameter_group.h"
 #include "banmo/registration/bone_registration_config.h"
 #include "banmo/util/enum_names.h"
+#include "banmo/util/option_check.h"
 
 namespace banmo {
 
@@ -67,6 +68,11 @@ struct RobustLossConfig {
 struct LossConfig {
   double weight = 0.0;
   RobustLossConfig robust;
+
+  // Each Check(c, key) below checks the struct's own fields, `key` its key
+  // path (e.g. "stages[1].adam"); InputError naming the file and the key
+  // (util/option_check.h).
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 // Every loss term's weight and robust loss, indexed by LossTerm; the YAML
@@ -83,6 +89,7 @@ struct LossesConfig {
   const LossConfig& operator[](LossTerm term) const { return terms.at(static_cast<size_t>(term)); }
   // The per-ray terms' weights.
   RayLossWeights RayWeights() const;
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct AdamConfig {
@@ -107,6 +114,8 @@ struct AdamConfig {
   // every frame of the videos it samples. 0: each frame's block on its own.
   int bone_basis = 0;
   int root_basis = 0;
+
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct LmConfig {
@@ -115,6 +124,8 @@ struct LmConfig {
   double max_radius = 1e6;      // cap of the radius carried between batches
   LinearSolverType linear_solver = LinearSolverType::kCgnr;
   int iterations_per_batch = 1;  // LM iterations on one minibatch
+
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct SamplingConfig {
@@ -157,6 +168,8 @@ struct SamplingConfig {
   // unbiased estimate of the mean over all pixels instead of favouring
   // the object pixels the sampler draws more often.
   bool unbiased_silhouette = false;
+
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct ScheduleConfig {
@@ -197,6 +210,9 @@ struct ScheduleConfig {
   // silhouette then fits the zero level set, without VolSDF's shell
   // (>= 1: never).
   double neus_from = 1.0;
+
+  // `batches`: the stage's (a fraction must fall on one of its batches).
+  void Check(const OptionChecker& c, const std::string& key, int batches) const;
 };
 
 // Per-frame root-pose solves (docs/solver.md, "Pose solves"): at the given
@@ -220,6 +236,8 @@ struct PoseSolveConfig {
   // or alone when the stage holds the root constant); in an `alternate`
   // stage the bone transforms then move only in the solves.
   bool bones = false;
+
+  void Check(const OptionChecker& c, const std::string& key, int batches) const;
 };
 
 // Parameter groups held constant (ceres SetParameterBlockConstant):
@@ -253,6 +271,10 @@ struct StageConfig {
   bool bone_steps_articulated = false;
   int checkpoint_every = 0;  // batches between checkpoints (0 = end of stage only)
   int log_every = 10;        // batches between progress lines
+
+  // Its sections' Check()s, then the rules that span several of them
+  // (constant groups against pose solves and registrations, ...).
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 // The stage's sampling at `fraction` of it: sampling.unbiased_silhouette is

@@ -5,10 +5,12 @@
 #pragma once
 
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include "banmo/util/enum_names.h"
+#include "banmo/util/option_check.h"
 
 namespace banmo {
 
@@ -66,6 +68,9 @@ struct BoneRegistrationConfig {
 
   // This config with after_last_batch's weights in place of its own.
   BoneRegistrationConfig AfterLastBatch() const;
+  // Its own fields (the rules against the stage: optim/config.cc); `key`
+  // its key path, e.g. "stages[2].bone_registration" (util/option_check.h).
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 }  // namespace banmo
