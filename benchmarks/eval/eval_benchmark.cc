@@ -7,7 +7,7 @@
 #include "../../tests/eval/test_shapes.h"
 #include "banmo/eval/evaluate.h"
 #include "banmo/eval/metrics.h"
-#include "banmo/eval/nearest_neighbors.h"
+#include "banmo/geometry/nearest_neighbors.h"
 
 namespace banmo {
 namespace {

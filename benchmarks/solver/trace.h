@@ -60,7 +60,7 @@ struct TraceRow {
   double chamfer_cm = 0.0;       // banmo protocol (NaN if the mesh is empty)
   double fscore[3] = {0, 0, 0};  // F@1 %, F@2 %, F@5 % in percent
   // Root rotation error against the dataset's ground-truth poses, mean and
-  // 90th percentile in degrees (optim/root_pose_error.h; NaN without them).
+  // 90th percentile in degrees (registration/root_pose_error.h; NaN without them).
   double root_rot_mean_deg = std::numeric_limits<double>::quiet_NaN();
   double root_rot_p90_deg = std::numeric_limits<double>::quiet_NaN();
 };

@@ -6,9 +6,9 @@
 #include <mutex>
 #include <vector>
 
-#include "banmo/eval/nearest_neighbors.h"
 #include "banmo/eval/surface_distance.h"
 #include "banmo/eval/surface_sampling.h"
+#include "banmo/geometry/nearest_neighbors.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"

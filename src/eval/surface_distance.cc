@@ -6,7 +6,7 @@
 #include <limits>
 #include <vector>
 
-#include "banmo/eval/nearest_neighbors.h"
+#include "banmo/geometry/nearest_neighbors.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"

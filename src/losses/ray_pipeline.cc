@@ -54,8 +54,8 @@ RayPipeline::RayPipeline(const Model& model, const RayBatchOptions& options,
       gradient(robust != nullptr),
       jacobians(full_jacobians || gradient),
       num_rays(static_cast<int>(rays.size())),
-      B(model.num_bones()),
-      A(model.appearance_size()) {}
+      num_bones(model.num_bones()),
+      appearance_dim(model.appearance_size()) {}
 
 void RayPipeline::Run() {
   CHECK_EQ(rays.size(), params.size());
@@ -78,8 +78,8 @@ void RayPipeline::Run() {
   }
   // Delta skinning (Eq. 14): logits of MLP_Delta added in every warp.
   delta = delta_params != nullptr ? model.delta_skinning() : nullptr;
-  P = delta != nullptr ? delta->CodeDim() : 0;
-  DL = delta != nullptr ? delta->LocalDim() : 0;
+  pose_code_dim = delta != nullptr ? delta->CodeDim() : 0;
+  delta_local_dim = delta != nullptr ? delta->LocalDim() : 0;
 
   Layout();
   DeltaBackwardInputs();
@@ -143,8 +143,8 @@ void RayPipeline::Layout() {
 // time-t point with the frame's pose code, for the backward warps.
 void RayPipeline::DeltaBackwardInputs() {
   if (delta != nullptr) {
-    bw.x.resize(3, total_samples);
-    bw.codes.resize(P, total_samples);
+    backward_delta.x.resize(3, total_samples);
+    backward_delta.codes.resize(pose_code_dim, total_samples);
     ParallelFor(num_rays, [&](int begin, int end) {
       for (int r = begin; r < end; ++r) {
         const Ray& ray = *rays[r];
@@ -152,29 +152,29 @@ void RayPipeline::DeltaBackwardInputs() {
         const RayScratch& s = scratch[r];
         for (int i = 0; i < s.num_samples; ++i) {
           SampleInRoot(p.block[kBlockRoot], p.root_init, p.block[kBlockIntrinsics], ray.uv.data(),
-                       ray.samples.depths[i], bw.x.col(s.field_offset + i).data());
+                       ray.samples.depths[i], backward_delta.x.col(s.field_offset + i).data());
         }
-        bw.codes.middleCols(s.field_offset, s.num_samples) =
-            Eigen::Map<const Eigen::VectorXd>(p.block[kBlockPoseCode], P)
+        backward_delta.codes.middleCols(s.field_offset, s.num_samples) =
+            Eigen::Map<const Eigen::VectorXd>(p.block[kBlockPoseCode], pose_code_dim)
                 .replicate(1, s.num_samples);
       }
     });
-    delta->ForwardBatch(delta_params, &bw, jacobians);
+    delta->ForwardBatch(delta_params, &backward_delta, jacobians);
   }
 }
 
 const double* RayPipeline::bw_logits(int col) const {
-  return delta != nullptr ? bw.logits.col(col).data() : nullptr;
+  return delta != nullptr ? backward_delta.logits.col(col).data() : nullptr;
 }
 const double* RayPipeline::fw_logits(int col) const {
-  return delta != nullptr ? fw.logits.col(col).data() : nullptr;
+  return delta != nullptr ? forward_delta.logits.col(col).data() : nullptr;
 }
 
 // Pass 1 (per ray): sample placement, view direction, backward warp.
 void RayPipeline::PlaceSamples() {
-  fb.x.resize(3, total_samples);
-  fb.view_dir.resize(3, total_samples);
-  fb.appearance.resize(A, total_samples);
+  field_batch.x.resize(3, total_samples);
+  field_batch.view_dir.resize(3, total_samples);
+  field_batch.appearance.resize(appearance_dim, total_samples);
 
   ParallelFor(num_rays, [&](int begin, int end) {
     for (int r = begin; r < end; ++r) {
@@ -204,13 +204,15 @@ void RayPipeline::PlaceSamples() {
             s.dxroot_droot[i].row(c) = x[c].v.head<kPoseSize>().transpose();
             s.dxroot_dk[i].row(c) = x[c].v.tail<kIntrinsicsSize>().transpose();
           }
-          WarpWithJacobian(WarpDirection::kBackward, B, p.block[kBlockBones], p.block[kBlockBonesT],
-                           s.x_root.col(i).data(), s.x_star.col(i).data(), &s.backward[i],
-                           bw_logits(s.field_offset + i), options_.skinning_jacobian_cutoff);
+          WarpWithJacobian(WarpDirection::kBackward, num_bones, p.block[kBlockBones],
+                           p.block[kBlockBonesT], s.x_root.col(i).data(), s.x_star.col(i).data(),
+                           &s.backward[i], bw_logits(s.field_offset + i),
+                           options_.skinning_jacobian_cutoff);
         } else {
           SampleInRoot(root, p.root_init, intr, ray.uv.data(), depth, s.x_root.col(i).data());
-          BackwardWarp(B, p.block[kBlockBones], p.block[kBlockBonesT], s.x_root.col(i).data(),
-                       s.x_star.col(i).data(), bw_logits(s.field_offset + i));
+          BackwardWarp(num_bones, p.block[kBlockBones], p.block[kBlockBonesT],
+                       s.x_root.col(i).data(), s.x_star.col(i).data(),
+                       bw_logits(s.field_offset + i));
         }
       }
       if (jacobians) {
@@ -227,11 +229,11 @@ void RayPipeline::PlaceSamples() {
       } else {
         ViewDirectionInRoot(root, p.root_init, intr, ray.uv.data(), s.view.data());
       }
-      fb.x.middleCols(s.field_offset, n) = s.x_star;
-      fb.view_dir.middleCols(s.field_offset, n) = s.view.replicate(1, n);
-      if (A > 0) {
-        const Eigen::Map<const Eigen::VectorXd> code(p.block[kBlockAppearance], A);
-        fb.appearance.middleCols(s.field_offset, n) = code.replicate(1, n);
+      field_batch.x.middleCols(s.field_offset, n) = s.x_star;
+      field_batch.view_dir.middleCols(s.field_offset, n) = s.view.replicate(1, n);
+      if (appearance_dim > 0) {
+        const Eigen::Map<const Eigen::VectorXd> code(p.block[kBlockAppearance], appearance_dim);
+        field_batch.appearance.middleCols(s.field_offset, n) = code.replicate(1, n);
       }
     }
   });
@@ -250,15 +252,16 @@ void RayPipeline::EvaluateFields() {
   if (!jacobians && !any_color) {
     // Nothing is differentiated and no colour read (the importance pass's
     // coarse evaluation, silhouette only): no colour MLP state at all.
-    field.ForwardSdfBatch(sdf_params, &fb, false);
+    field.ForwardSdfBatch(sdf_params, &field_batch, false);
   } else {
-    field.ForwardGeometryBatch(sdf_params, &fb, jacobians);
+    field.ForwardGeometryBatch(sdf_params, &field_batch, jacobians);
   }
   ParallelFor(num_rays, [&](int begin, int end) {
     for (int r = begin; r < end; ++r) {
       const RayScratch& s = scratch[r];
       RayEvaluation& ev = (*out)[r];
-      ev.sdf.assign(fb.sdf.data() + s.field_offset, fb.sdf.data() + s.field_offset + s.num_samples);
+      ev.sdf.assign(field_batch.sdf.data() + s.field_offset,
+                    field_batch.sdf.data() + s.field_offset + s.num_samples);
       ev.tau.resize(s.num_samples);
       CompositeWeights(s.num_samples, ev.sdf.data(), *params[r].block[kBlockLogBeta],
                        rays[r]->samples.deltas.data(), model.options().density, ev.tau.data());
@@ -284,32 +287,33 @@ void RayPipeline::EvaluateFields() {
     emb_groups[r + 1] = emb_groups[r] + s.num_emb;
   }
   total_emb = emb_groups[num_rays];
-  if (jacobians || any_color) field.ForwardColorBatch(color_params, columns, &fb, jacobians);
+  if (jacobians || any_color)
+    field.ForwardColorBatch(color_params, columns, &field_batch, jacobians);
   if (total_emb > 0) {
-    sb.x.resize(3, total_emb);
+    sample_batch.x.resize(3, total_emb);
     for (int r = 0; r < num_rays; ++r) {
       const RayScratch& s = scratch[r];
       for (int j = 0; j < s.num_emb; ++j)
-        sb.x.col(s.emb_offset + j) = s.x_star.col(s.emb_samples[j]);
+        sample_batch.x.col(s.emb_offset + j) = s.x_star.col(s.emb_samples[j]);
     }
     // d psi / d X*_i only when the term moves the samples (not embedding-only).
-    field.ForwardEmbeddingBatch(embedding_params, &sb,
+    field.ForwardEmbeddingBatch(embedding_params, &sample_batch,
                                 jacobians && !options_.feature_render_embedding_only);
   }
   if (total_match > 0) {
-    eb.x.resize(3, total_match);
+    match_batch.x.resize(3, total_match);
     for (int r = 0; r < num_rays; ++r) {
       const Ray& ray = *rays[r];
       for (int k = 0; k < scratch[r].num_match; ++k) {
-        eb.x.col(scratch[r].match_offset + k) = grid_.col(ray.match_indices[k]);
+        match_batch.x.col(scratch[r].match_offset + k) = grid_.col(ray.match_indices[k]);
       }
     }
-    field.ForwardEmbeddingBatch(embedding_params, &eb, false);
+    field.ForwardEmbeddingBatch(embedding_params, &match_batch, false);
     for (int r = 0; r < num_rays; ++r) {
       const RayScratch& s = scratch[r];
       if (s.num_match == 0) continue;
-      const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
-      const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
+      const Eigen::MatrixXd psi = match_batch.psi.middleCols(s.match_offset, s.num_match);
+      const Eigen::Matrix3Xd points = match_batch.x.middleCols(s.match_offset, s.num_match);
       SoftArgmax(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
                  options_.matcher.temperature, scratch[r].x_hat.data());
     }
@@ -317,40 +321,41 @@ void RayPipeline::EvaluateFields() {
   // Delta skinning, forward warps: MLP_Delta at the canonical points pushed
   // forward (X*_i, X_hat*) with the rest-pose code.
   if (delta != nullptr && total_fw > 0) {
-    fw.x.resize(3, total_fw);
-    fw.codes.resize(P, total_fw);
+    forward_delta.x.resize(3, total_fw);
+    forward_delta.codes.resize(pose_code_dim, total_fw);
     for (int r = 0; r < num_rays; ++r) {
       const RayScratch& s = scratch[r];
-      const Eigen::Map<const Eigen::VectorXd> rest_code(params[r].block[kBlockRestPoseCode], P);
-      fw.x.middleCols(s.fw_offset, s.fw_samples) = s.x_star.leftCols(s.fw_samples);
-      if (s.fw_hat >= 0) fw.x.col(s.fw_hat) = s.x_hat;
+      const Eigen::Map<const Eigen::VectorXd> rest_code(params[r].block[kBlockRestPoseCode],
+                                                        pose_code_dim);
+      forward_delta.x.middleCols(s.fw_offset, s.fw_samples) = s.x_star.leftCols(s.fw_samples);
+      if (s.fw_hat >= 0) forward_delta.x.col(s.fw_hat) = s.x_hat;
       const int count = fw_groups[r + 1] - fw_groups[r];
-      fw.codes.middleCols(s.fw_offset, count) = rest_code.replicate(1, count);
+      forward_delta.codes.middleCols(s.fw_offset, count) = rest_code.replicate(1, count);
     }
-    delta->ForwardBatch(delta_params, &fw, jacobians);
+    delta->ForwardBatch(delta_params, &forward_delta, jacobians);
   }
 }
 
 RayPipeline::RayWork::RayWork(int r, const Ray& ray, const RayParameters& p, RayScratch& s,
                               RayEvaluation& ev, const RayLossWeights& weights,
                               DensityModel density)
-    : r(r),
+    : ray_index(r),
       ray(ray),
-      p(p),
-      s(s),
-      ev(ev),
-      n(s.num_samples),
+      params(p),
+      scratch(s),
+      eval(ev),
+      num_samples(s.num_samples),
       bones(p.block[kBlockBones]),
       intr(p.block[kBlockIntrinsics]),
       composite(ray, weights, density),
-      R(composite.num_residuals()),
+      rows(composite.num_residuals()),
       cycle3d(ray.HasTerm(LossTerm::kCycle3d, weights)) {}
 
 void RayPipeline::EvaluateRay(int r) {
   RayWork w(r, *rays[r], params[r], scratch[r], (*out)[r], weights, model.options().density);
-  // Rows of the reverse chain: R, or one cotangent row in gradient mode.
-  w.Rc = gradient ? std::min(w.R, 1) : w.R;
-  w.s.composite_rows = w.Rc;
+  // Rows of the reverse chain: all rows, or one cotangent row in gradient mode.
+  w.chain_rows = gradient ? std::min(w.rows, 1) : w.rows;
+  w.scratch.composite_rows = w.chain_rows;
   InitEvaluation(w);
   CompositeInputs(w);
   CompositeResiduals(w);
@@ -363,10 +368,10 @@ void RayPipeline::EvaluateRay(int r) {
 // The ray's residual rows (composite terms in table order, then the 3D cycle)
 // and Jacobian blocks.
 void RayPipeline::InitEvaluation(RayWork& w) {
-  RayEvaluation& ev = w.ev;
-  const int n = w.n;
-  const int R = w.R;
-  const int Rc = w.Rc;
+  RayEvaluation& ev = w.eval;
+  const int n = w.num_samples;
+  const int R = w.rows;
+  const int Rc = w.chain_rows;
   const bool cycle3d = w.cycle3d;
   const int total_rows = R + (cycle3d ? 3 * n : 0);
   ev.residuals.assign(total_rows, 0.0);
@@ -381,7 +386,7 @@ void RayPipeline::InitEvaluation(RayWork& w) {
     }
     if (cycle3d) ev.term_row[static_cast<int>(LossTerm::kCycle3d)] = R;
   }
-  const std::array<int, kNumRayBlocks> sizes = RayBlockSizes(model, w.p);
+  const std::array<int, kNumRayBlocks> sizes = RayBlockSizes(model, w.params);
   if (jacobians) {
     ev.has_jacobians = !gradient;
     for (int b = 0; b < kNumRayBlocks; ++b) {
@@ -394,13 +399,13 @@ void RayPipeline::InitEvaluation(RayWork& w) {
 
 void RayPipeline::CompositeInputs(RayWork& w) {
   const Ray& ray = w.ray;
-  const RayParameters& p = w.p;
-  RayScratch& s = w.s;
-  const int n = w.n;
+  const RayParameters& p = w.params;
+  RayScratch& s = w.scratch;
+  const int n = w.num_samples;
   const double* bones = w.bones;
   const double* intr = w.intr;
   const CompositeLocals& L = w.composite.locals();
-  std::vector<double>& u = w.u;
+  std::vector<double>& u = w.locals;
   std::vector<WarpJacobian>& flow_warp = w.flow_warp;
   std::vector<ProjectionJacobian>& flow_proj = w.flow_proj;
   WarpJacobian& cycle_warp = w.cycle_warp;
@@ -409,9 +414,9 @@ void RayPipeline::CompositeInputs(RayWork& w) {
   u.assign(L.size, 0.0);
   for (int i = 0; i < n; ++i) {
     const int col = s.field_offset + i;
-    u[L.sdf + i] = fb.sdf(col);
+    u[L.sdf + i] = field_batch.sdf(col);
     if (L.has_rgb) {
-      for (int c = 0; c < 3; ++c) u[L.rgb + 3 * i + c] = fb.rgb(c, col);
+      for (int c = 0; c < 3; ++c) u[L.rgb + 3 * i + c] = field_batch.rgb(c, col);
     }
     if (L.has_matched) {
       for (int c = 0; c < 3; ++c) u[L.canonical + 3 * i + c] = s.x_star(c, i);
@@ -419,7 +424,7 @@ void RayPipeline::CompositeInputs(RayWork& w) {
   }
   u[L.log_beta] = *p.block[kBlockLogBeta];
   // Rendering weights: EvaluateFields computed them (ev.sdf, ev.tau).
-  RayEvaluation& ev = w.ev;
+  RayEvaluation& ev = w.eval;
   // Flow: each X*_i pushed with the forward warp of t' and projected (Eq. 6),
   // the samples the flow sums only (weight >= kMinWarpTau; the others'
   // displacements stay 0, unread).
@@ -433,14 +438,14 @@ void RayPipeline::CompositeInputs(RayWork& w) {
       Eigen::Vector3d x_t2;
       Eigen::Vector2d uv2;
       if (jacobians) {
-        WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockPartnerBonesT],
+        WarpWithJacobian(WarpDirection::kForward, num_bones, bones, p.block[kBlockPartnerBonesT],
                          s.x_star.col(i).data(), x_t2.data(), &flow_warp[i],
                          fw_logits(s.fw_offset + i), options_.skinning_jacobian_cutoff);
         ProjectWithJacobian(p.block[kBlockPartnerRoot], p.partner_root_init, intr, x_t2.data(),
                             uv2.data(), &flow_proj[i]);
       } else {
-        ForwardWarp(B, bones, p.block[kBlockPartnerBonesT], s.x_star.col(i).data(), x_t2.data(),
-                    fw_logits(s.fw_offset + i));
+        ForwardWarp(num_bones, bones, p.block[kBlockPartnerBonesT], s.x_star.col(i).data(),
+                    x_t2.data(), fw_logits(s.fw_offset + i));
         ProjectRootPoint(p.block[kBlockPartnerRoot], p.partner_root_init, intr, x_t2.data(),
                          uv2.data());
       }
@@ -457,7 +462,8 @@ void RayPipeline::CompositeInputs(RayWork& w) {
     std::fill(u.begin() + L.embedding, u.begin() + L.embedding + E * n, 0.0);
     for (int j = 0; j < s.num_emb; ++j) {
       const int i = s.emb_samples[j];
-      for (int c = 0; c < E; ++c) u[L.embedding + E * i + c] = sb.psi(c, s.emb_offset + j);
+      for (int c = 0; c < E; ++c)
+        u[L.embedding + E * i + c] = sample_batch.psi(c, s.emb_offset + j);
     }
   }
   // 2D cycle: X_hat* pushed forward to t and projected (Eq. 18).
@@ -465,13 +471,14 @@ void RayPipeline::CompositeInputs(RayWork& w) {
     Eigen::Vector3d x_t;
     Eigen::Vector2d uv_c;
     if (jacobians) {
-      WarpWithJacobian(WarpDirection::kForward, B, bones, p.block[kBlockBonesT], s.x_hat.data(),
-                       x_t.data(), &cycle_warp, fw_logits(s.fw_hat),
+      WarpWithJacobian(WarpDirection::kForward, num_bones, bones, p.block[kBlockBonesT],
+                       s.x_hat.data(), x_t.data(), &cycle_warp, fw_logits(s.fw_hat),
                        options_.skinning_jacobian_cutoff);
       ProjectWithJacobian(p.block[kBlockRoot], p.root_init, intr, x_t.data(), uv_c.data(),
                           &cycle_proj);
     } else {
-      ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_hat.data(), x_t.data(), fw_logits(s.fw_hat));
+      ForwardWarp(num_bones, bones, p.block[kBlockBonesT], s.x_hat.data(), x_t.data(),
+                  fw_logits(s.fw_hat));
       ProjectRootPoint(p.block[kBlockRoot], p.root_init, intr, x_t.data(), uv_c.data());
     }
     u[L.cycle_projection + 0] = uv_c[0];
@@ -480,17 +487,17 @@ void RayPipeline::CompositeInputs(RayWork& w) {
 }
 
 void RayPipeline::CompositeResiduals(RayWork& w) {
-  RayEvaluation& ev = w.ev;
-  const int r = w.r;
-  const int n = w.n;
+  RayEvaluation& ev = w.eval;
+  const int r = w.ray_index;
+  const int n = w.num_samples;
   const RayCompositeFunctor& composite = w.composite;
-  const int R = w.R;
-  std::vector<double>& u = w.u;
-  RowMajorMatrix& D = w.D;
+  const int R = w.rows;
+  std::vector<double>& u = w.locals;
+  RowMajorMatrix& D = w.locals_jacobian;
   const int render_row = ev.term_row[static_cast<int>(LossTerm::kFeatureRender)];
   if (R > 0) {
     if (jacobians) {
-      // The embedding inputs (last in u) in closed form: 16 N fewer Jet
+      // The embedding inputs (last in the locals) in closed form: 16 N fewer Jet
       // directions. Embedding-only, the term's other columns are not wanted
       // either, and it leaves the Jets altogether.
       const CompositeLocals& L = composite.locals();
@@ -531,13 +538,13 @@ void RayPipeline::CompositeResiduals(RayWork& w) {
 
 bool RayPipeline::RenderingWeights(RayWork& w) {
   const Ray& ray = w.ray;
-  const RayParameters& p = w.p;
-  RayScratch& s = w.s;
-  RayEvaluation& ev = w.ev;
-  const int n = w.n;
+  const RayParameters& p = w.params;
+  RayScratch& s = w.scratch;
+  RayEvaluation& ev = w.eval;
+  const int n = w.num_samples;
   const double* bones = w.bones;
   const double* intr = w.intr;
-  const int R = w.R;
+  const int R = w.rows;
   const bool cycle3d = w.cycle3d;
   // The 3D cycle (Eq. 19) uses the ray's fixed cycle_tau when set (the
   // minibatch's constants), else the rendering weights of CompositeInputs.
@@ -551,7 +558,7 @@ bool RayPipeline::RenderingWeights(RayWork& w) {
         const Cycle3dLoss loss(tau[i], weights[LossTerm::kCycle3d]);
         if (!loss.active()) continue;  // rows stay 0
         Eigen::Vector3d q;
-        ForwardWarp(B, bones, p.block[kBlockBonesT], s.x_star.col(i).data(), q.data(),
+        ForwardWarp(num_bones, bones, p.block[kBlockBonesT], s.x_star.col(i).data(), q.data(),
                     fw_logits(s.fw_offset + i));
         Cycle3dResidual(loss, p.block[kBlockRoot], p.root_init, intr, ray.uv.data(),
                         ray.samples.depths[i], q.data(), ev.residuals.data() + R + 3 * i);
@@ -571,25 +578,26 @@ void RayPipeline::ChainDelta(RayJacobians& jac, const Eigen::Ref<const RowMajorM
                              RayBlock code_block, int row0, Eigen::Ref<RowMajorMatrix> a_logits,
                              Eigen::Ref<RowMajorMatrix> a_in) const {
   const RowMajorMatrix a_dl = a * wj.d_delta_logits;
-  const auto jd = batch.jacobian.middleCols(static_cast<Eigen::Index>(DL) * col, DL);
+  const auto jd =
+      batch.jacobian.middleCols(static_cast<Eigen::Index>(delta_local_dim) * col, delta_local_dim);
   a_in.noalias() += a_dl * jd.leftCols<3>();
-  AddProduct(&jac[code_block], row0, a_dl, jd.rightCols(P));
+  AddProduct(&jac[code_block], row0, a_dl, jd.rightCols(pose_code_dim));
   a_logits += a_dl;
 }
 
 void RayPipeline::ReverseComposite(RayWork& w) {
-  RayScratch& s = w.s;
-  const int r = w.r;
-  const int n = w.n;
+  RayScratch& s = w.scratch;
+  const int r = w.ray_index;
+  const int n = w.num_samples;
   const CompositeLocals& L = w.composite.locals();
-  const int Rc = w.Rc;
+  const int Rc = w.chain_rows;
   const bool cycle3d = w.cycle3d;
   std::vector<WarpJacobian>& flow_warp = w.flow_warp;
   std::vector<ProjectionJacobian>& flow_proj = w.flow_proj;
   WarpJacobian& cycle_warp = w.cycle_warp;
   ProjectionJacobian& cycle_proj = w.cycle_proj;
-  RowMajorMatrix& D = w.D;
-  auto& jac = w.ev.jacobians;
+  RowMajorMatrix& D = w.locals_jacobian;
+  auto& jac = w.eval.jacobians;
   // ---- Reverse chain (composite rows). ----
   RowMajorMatrix a_xstar = RowMajorMatrix::Zero(Rc, 3 * n);
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> a_view =
@@ -601,11 +609,11 @@ void RayPipeline::ReverseComposite(RayWork& w) {
   if (delta != nullptr) {
     // Gradient mode: one cotangent row shared by the composite and 3D-cycle terms.
     const int rows = gradient ? 1 : Rc;
-    s.a_dbw = RowMajorMatrix::Zero(rows, B * n);
-    s.a_dfw = RowMajorMatrix::Zero(rows, B * (fw_groups[r + 1] - fw_groups[r]));
+    s.a_dbw = RowMajorMatrix::Zero(rows, num_bones * n);
+    s.a_dfw = RowMajorMatrix::Zero(rows, num_bones * (fw_groups[r + 1] - fw_groups[r]));
     if (cycle3d && !gradient) {
-      s.c3_dbw = RowMajorMatrix::Zero(3 * n, B);
-      s.c3_dfw = RowMajorMatrix::Zero(3 * n, B);
+      s.c3_dbw = RowMajorMatrix::Zero(3 * n, num_bones);
+      s.c3_dfw = RowMajorMatrix::Zero(3 * n, num_bones);
     }
   }
   if (Rc > 0) {
@@ -626,15 +634,18 @@ void RayPipeline::ReverseComposite(RayWork& w) {
   // Field inputs: X*_i, view direction, appearance code.
   for (int i = 0; i < n && Rc > 0; ++i) {
     const int col = s.field_offset + i;
-    a_xstar.middleCols<3>(3 * i).noalias() += s.a_sdf.col(i) * fb.dsdf_dx.col(col).transpose();
+    a_xstar.middleCols<3>(3 * i).noalias() +=
+        s.a_sdf.col(i) * field_batch.dsdf_dx.col(col).transpose();
     if (L.has_rgb) {
       const auto a_rgb_i = s.a_rgb.middleCols<3>(3 * i);
-      a_xstar.middleCols<3>(3 * i).noalias() += a_rgb_i * fb.drgb_dx.middleCols<3>(3 * col);
+      a_xstar.middleCols<3>(3 * i).noalias() +=
+          a_rgb_i * field_batch.drgb_dx.middleCols<3>(3 * col);
       if (field.options().use_view_direction) {
-        a_view.noalias() += a_rgb_i * fb.drgb_dview.middleCols<3>(3 * col);
+        a_view.noalias() += a_rgb_i * field_batch.drgb_dview.middleCols<3>(3 * col);
       }
-      if (A > 0) {
-        AddProduct(&jac[kBlockAppearance], 0, a_rgb_i, fb.drgb_dappearance.middleCols(A * col, A));
+      if (appearance_dim > 0) {
+        AddProduct(&jac[kBlockAppearance], 0, a_rgb_i,
+                   field_batch.drgb_dappearance.middleCols(appearance_dim * col, appearance_dim));
       }
     }
   }
@@ -644,7 +655,7 @@ void RayPipeline::ReverseComposite(RayWork& w) {
     constexpr int E = CompositeLocals::kEmbeddingDim;
     for (int j = 0; j < s.num_emb; ++j) {
       a_xstar.middleCols<3>(3 * s.emb_samples[j]).noalias() +=
-          s.a_psi.middleCols<E>(E * j) * sb.dpsi_dx.middleCols<3>(3 * (s.emb_offset + j));
+          s.a_psi.middleCols<E>(E * j) * sample_batch.dpsi_dx.middleCols<3>(3 * (s.emb_offset + j));
     }
   }
   // Flow: displacement_i = Pi_{t'}(G^{t'} W^{t',->}(X*_i)) - x.
@@ -659,8 +670,9 @@ void RayPipeline::ReverseComposite(RayWork& w) {
       AddProduct(&jac[kBlockBones], 0, a_p, flow_warp[i].d_bones);
       AddProduct(&jac[kBlockPartnerBonesT], 0, a_p, flow_warp[i].d_bones_t);
       if (delta != nullptr) {
-        ChainDelta(jac, a_p, flow_warp[i], fw, s.fw_offset + i, kBlockRestPoseCode, 0,
-                   s.a_dfw.block(0, B * i, a_p.rows(), B), a_xstar.middleCols<3>(3 * i));
+        ChainDelta(jac, a_p, flow_warp[i], forward_delta, s.fw_offset + i, kBlockRestPoseCode, 0,
+                   s.a_dfw.block(0, num_bones * i, a_p.rows(), num_bones),
+                   a_xstar.middleCols<3>(3 * i));
       }
     }
   }
@@ -674,8 +686,9 @@ void RayPipeline::ReverseComposite(RayWork& w) {
     AddProduct(&jac[kBlockBones], 0, a_p, cycle_warp.d_bones);
     AddProduct(&jac[kBlockBonesT], 0, a_p, cycle_warp.d_bones_t);
     if (delta != nullptr) {
-      ChainDelta(jac, a_p, cycle_warp, fw, s.fw_hat, kBlockRestPoseCode, 0,
-                 s.a_dfw.block(0, B * (s.fw_hat - s.fw_offset), a_p.rows(), B), s.a_xhat);
+      ChainDelta(jac, a_p, cycle_warp, forward_delta, s.fw_hat, kBlockRestPoseCode, 0,
+                 s.a_dfw.block(0, num_bones * (s.fw_hat - s.fw_offset), a_p.rows(), num_bones),
+                 s.a_xhat);
     }
   }
   // Backward warp and sample placement of every X*_i.
@@ -683,8 +696,8 @@ void RayPipeline::ReverseComposite(RayWork& w) {
     const auto a_x = a_xstar.middleCols<3>(3 * i);
     RowMajorMatrix a_root_pt = a_x * s.backward[i].d_x;
     if (delta != nullptr) {
-      ChainDelta(jac, a_x, s.backward[i], bw, s.field_offset + i, kBlockPoseCode, 0,
-                 s.a_dbw.block(0, B * i, Rc, B), a_root_pt);
+      ChainDelta(jac, a_x, s.backward[i], backward_delta, s.field_offset + i, kBlockPoseCode, 0,
+                 s.a_dbw.block(0, num_bones * i, Rc, num_bones), a_root_pt);
     }
     AddProduct(&jac[kBlockBones], 0, a_x, s.backward[i].d_bones);
     AddProduct(&jac[kBlockBonesT], 0, a_x, s.backward[i].d_bones_t);
@@ -701,11 +714,11 @@ void RayPipeline::ReverseComposite(RayWork& w) {
 // warp's Jacobian *qj, and the residual's Jacobian *E wrt [q (the
 // forward-warped point), root_delta, intrinsics].
 void RayPipeline::Cycle3dSample(RayWork& w, int i, WarpJacobian* qj, Cycle3dJacobian* E) const {
-  const RayParameters& p = w.p;
-  const RayScratch& s = w.s;
+  const RayParameters& p = w.params;
+  const RayScratch& s = w.scratch;
   using J = JetN<kPointPoseIntrinsics>;
   Eigen::Vector3d q;
-  WarpWithJacobian(WarpDirection::kForward, B, w.bones, p.block[kBlockBonesT],
+  WarpWithJacobian(WarpDirection::kForward, num_bones, w.bones, p.block[kBlockBonesT],
                    s.x_star.col(i).data(), q.data(), qj, fw_logits(s.fw_offset + i),
                    options_.skinning_jacobian_cutoff);
   J qj_jet[3], pose[kPoseSize], k[kIntrinsicsSize], res[3];
@@ -715,19 +728,19 @@ void RayPipeline::Cycle3dSample(RayWork& w, int i, WarpJacobian* qj, Cycle3dJaco
   Cycle3dResidual(Cycle3dLoss((*w.tau)[i], weights[LossTerm::kCycle3d]), pose, p.root_init, k,
                   w.ray.uv.data(), w.ray.samples.depths[i], qj_jet, res);
   for (int c = 0; c < 3; ++c) {
-    w.ev.residuals[w.R + 3 * i + c] = res[c].a;
+    w.eval.residuals[w.rows + 3 * i + c] = res[c].a;
     E->row(c) = res[c].v.transpose();
   }
 }
 
 void RayPipeline::Cycle3dGradient(RayWork& w) {
-  RayScratch& s = w.s;
-  RayEvaluation& ev = w.ev;
-  const int r = w.r;
-  const int n = w.n;
-  const int R = w.R;
+  RayScratch& s = w.scratch;
+  RayEvaluation& ev = w.eval;
+  const int r = w.ray_index;
+  const int n = w.num_samples;
+  const int R = w.rows;
   const bool cycle3d = w.cycle3d;
-  auto& jac = w.ev.jacobians;
+  auto& jac = w.eval.jacobians;
   // ---- 3D cycle, gradient mode: all residuals first (rho' needs the
   // whole term's |r|^2), then one cotangent row c_i^T E_i per sample. ----
   if (cycle3d && gradient) {
@@ -758,13 +771,13 @@ void RayPipeline::Cycle3dGradient(RayWork& w) {
       AddProduct(&jac[kBlockBones], 0, a_q, qjs[i].d_bones);
       AddProduct(&jac[kBlockBonesT], 0, a_q, qjs[i].d_bones_t);
       if (delta != nullptr) {
-        ChainDelta(jac, a_q, qjs[i], fw, s.fw_offset + i, kBlockRestPoseCode, 0,
-                   s.a_dfw.block(0, B * i, 1, B), a_x);
+        ChainDelta(jac, a_q, qjs[i], forward_delta, s.fw_offset + i, kBlockRestPoseCode, 0,
+                   s.a_dfw.block(0, num_bones * i, 1, num_bones), a_x);
       }
       RowMajorMatrix a_root_pt = a_x * s.backward[i].d_x;
       if (delta != nullptr) {
-        ChainDelta(jac, a_x, s.backward[i], bw, s.field_offset + i, kBlockPoseCode, 0,
-                   s.a_dbw.block(0, B * i, 1, B), a_root_pt);
+        ChainDelta(jac, a_x, s.backward[i], backward_delta, s.field_offset + i, kBlockPoseCode, 0,
+                   s.a_dbw.block(0, num_bones * i, 1, num_bones), a_root_pt);
       }
       AddProduct(&jac[kBlockBones], 0, a_x, s.backward[i].d_bones);
       AddProduct(&jac[kBlockBonesT], 0, a_x, s.backward[i].d_bones_t);
@@ -775,11 +788,11 @@ void RayPipeline::Cycle3dGradient(RayWork& w) {
 }
 
 void RayPipeline::Cycle3dRows(RayWork& w) {
-  RayScratch& s = w.s;
-  const int n = w.n;
-  const int R = w.R;
+  RayScratch& s = w.scratch;
+  const int n = w.num_samples;
+  const int R = w.rows;
   const bool cycle3d = w.cycle3d;
-  auto& jac = w.ev.jacobians;
+  auto& jac = w.eval.jacobians;
   // ---- 3D cycle rows: 3 per sample, small blocks only. ----
   if (cycle3d && !gradient) {
     for (int i = 0; i < n; ++i) {
@@ -798,13 +811,13 @@ void RayPipeline::Cycle3dRows(RayWork& w) {
       AddProduct(&jac[kBlockBones], row0, a_q, qj.d_bones);
       AddProduct(&jac[kBlockBonesT], row0, a_q, qj.d_bones_t);
       if (delta != nullptr) {
-        ChainDelta(jac, a_q, qj, fw, s.fw_offset + i, kBlockRestPoseCode, row0,
+        ChainDelta(jac, a_q, qj, forward_delta, s.fw_offset + i, kBlockRestPoseCode, row0,
                    s.c3_dfw.middleRows(3 * i, 3), a_x);
       }
       RowMajorMatrix a_root_pt = a_x * s.backward[i].d_x;
       if (delta != nullptr) {
-        ChainDelta(jac, a_x, s.backward[i], bw, s.field_offset + i, kBlockPoseCode, row0,
-                   s.c3_dbw.middleRows(3 * i, 3), a_root_pt);
+        ChainDelta(jac, a_x, s.backward[i], backward_delta, s.field_offset + i, kBlockPoseCode,
+                   row0, s.c3_dbw.middleRows(3 * i, 3), a_root_pt);
       }
       AddProduct(&jac[kBlockBones], row0, a_x, s.backward[i].d_bones);
       AddProduct(&jac[kBlockBonesT], row0, a_x, s.backward[i].d_bones_t);
@@ -819,8 +832,8 @@ void RayPipeline::MatchPsiCotangent(int k, Eigen::MatrixXd* d_psi) const {
   for (int r = 0; r < num_rays; ++r) {
     const RayScratch& s = scratch[r];
     if (k >= s.composite_rows || s.num_match == 0) continue;
-    const Eigen::MatrixXd psi = eb.psi.middleCols(s.match_offset, s.num_match);
-    const Eigen::Matrix3Xd points = eb.x.middleCols(s.match_offset, s.num_match);
+    const Eigen::MatrixXd psi = match_batch.psi.middleCols(s.match_offset, s.num_match);
+    const Eigen::Matrix3Xd points = match_batch.x.middleCols(s.match_offset, s.num_match);
     const Eigen::Vector3d a = s.a_xhat.row(k).transpose();
     Eigen::MatrixXd dpsi;
     SoftArgmaxBackward(rays[r]->feature.data(), psi.data(), points.data(), s.num_match,
@@ -853,30 +866,31 @@ void RayPipeline::MlpGradient() {
     }
   }
   Eigen::MatrixXd d_sdf_params, d_color_params, d_embedding_params;
-  field.BackwardBatch(sdf_params, color_params, fb, d_sdf, d_rgb, {0, total_samples}, &d_sdf_params,
-                      &d_color_params);
+  field.BackwardBatch(sdf_params, color_params, field_batch, d_sdf, d_rgb, {0, total_samples},
+                      &d_sdf_params, &d_color_params);
   (*mlp_gradient)[0] = d_sdf_params.col(0);
   (*mlp_gradient)[1] = d_color_params.col(0);
   (*mlp_gradient)[2] = Eigen::VectorXd::Zero(model.embedding_size());
   Eigen::MatrixXd d_psi;
   if (total_match > 0) {
     MatchPsiCotangent(0, &d_psi);
-    field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, {0, total_match},
+    field.BackwardEmbeddingBatch(embedding_params, match_batch, d_psi, {0, total_match},
                                  &d_embedding_params);
     (*mlp_gradient)[2] += d_embedding_params.col(0);
   }
   if (total_emb > 0) {
     SamplePsiCotangent(0, &d_psi);
-    field.BackwardEmbeddingBatch(embedding_params, sb, d_psi, {0, total_emb}, &d_embedding_params);
+    field.BackwardEmbeddingBatch(embedding_params, sample_batch, d_psi, {0, total_emb},
+                                 &d_embedding_params);
     (*mlp_gradient)[2] += d_embedding_params.col(0);
   }
   if (delta != nullptr) {
     Eigen::MatrixXd d_bw, d_fw, g;
-    GatherDeltaAdjoints(scratch, fw_groups, B, 0, &d_bw, &d_fw, nullptr);
-    delta->BackwardBatch(delta_params, bw, d_bw, {0, total_samples}, &g);
+    GatherDeltaAdjoints(scratch, fw_groups, num_bones, 0, &d_bw, &d_fw, nullptr);
+    delta->BackwardBatch(delta_params, backward_delta, d_bw, {0, total_samples}, &g);
     (*mlp_gradient)[3] = g.col(0);
     if (total_fw > 0) {
-      delta->BackwardBatch(delta_params, fw, d_fw, {0, total_fw}, &g);
+      delta->BackwardBatch(delta_params, forward_delta, d_fw, {0, total_fw}, &g);
       (*mlp_gradient)[3] += g.col(0);
     }
   }
@@ -908,8 +922,8 @@ void RayPipeline::MlpJacobians() {
       any_emb = any_emb || (s.num_emb > 0 && s.a_psi.row(k).squaredNorm() > 0);
     }
     if (any_field) {
-      field.BackwardBatch(sdf_params, color_params, fb, d_sdf, d_rgb, field_groups, &d_sdf_params,
-                          &d_color_params);
+      field.BackwardBatch(sdf_params, color_params, field_batch, d_sdf, d_rgb, field_groups,
+                          &d_sdf_params, &d_color_params);
       for (int r = 0; r < num_rays; ++r) {
         if (k >= scratch[r].composite_rows) continue;
         (*out)[r].jacobians[kBlockSdf].row(k) = d_sdf_params.col(r).transpose();
@@ -918,7 +932,8 @@ void RayPipeline::MlpJacobians() {
     }
     if (any_match) {
       MatchPsiCotangent(k, &d_psi);
-      field.BackwardEmbeddingBatch(embedding_params, eb, d_psi, match_groups, &d_embedding_params);
+      field.BackwardEmbeddingBatch(embedding_params, match_batch, d_psi, match_groups,
+                                   &d_embedding_params);
       for (int r = 0; r < num_rays; ++r) {
         if (k >= scratch[r].composite_rows || scratch[r].num_match == 0) continue;
         (*out)[r].jacobians[kBlockEmbedding].row(k) = d_embedding_params.col(r).transpose();
@@ -926,7 +941,8 @@ void RayPipeline::MlpJacobians() {
     }
     if (any_emb) {
       SamplePsiCotangent(k, &d_psi);
-      field.BackwardEmbeddingBatch(embedding_params, sb, d_psi, emb_groups, &d_embedding_params);
+      field.BackwardEmbeddingBatch(embedding_params, sample_batch, d_psi, emb_groups,
+                                   &d_embedding_params);
       for (int r = 0; r < num_rays; ++r) {
         if (k >= scratch[r].composite_rows || scratch[r].num_emb == 0) continue;
         (*out)[r].jacobians[kBlockEmbedding].row(k) += d_embedding_params.col(r).transpose();
@@ -935,10 +951,10 @@ void RayPipeline::MlpJacobians() {
     if (delta != nullptr) {
       Eigen::MatrixXd d_bw, d_fw, g_bw, g_fw;
       bool any = false;
-      GatherDeltaAdjoints(scratch, fw_groups, B, k, &d_bw, &d_fw, &any);
+      GatherDeltaAdjoints(scratch, fw_groups, num_bones, k, &d_bw, &d_fw, &any);
       if (any) {
-        delta->BackwardBatch(delta_params, bw, d_bw, field_groups, &g_bw);
-        if (total_fw > 0) delta->BackwardBatch(delta_params, fw, d_fw, fw_groups, &g_fw);
+        delta->BackwardBatch(delta_params, backward_delta, d_bw, field_groups, &g_bw);
+        if (total_fw > 0) delta->BackwardBatch(delta_params, forward_delta, d_fw, fw_groups, &g_fw);
         for (int r = 0; r < num_rays; ++r) {
           if (k >= scratch[r].composite_rows) continue;
           auto row = (*out)[r].jacobians[kBlockDeltaSkin].row(k);
@@ -970,21 +986,21 @@ void RayPipeline::DeltaCycle3dJacobians() {
       const int m = static_cast<int>(members.size());
       DeltaSkinningBatch cb, cf;
       cb.x.resize(3, m);
-      cb.codes.resize(P, m);
+      cb.codes.resize(pose_code_dim, m);
       cf.x.resize(3, m);
-      cf.codes.resize(P, m);
+      cf.codes.resize(pose_code_dim, m);
       for (int j = 0; j < m; ++j) {
         const RayScratch& s = scratch[members[j]];
-        cb.x.col(j) = bw.x.col(s.field_offset + i);
-        cb.codes.col(j) = bw.codes.col(s.field_offset + i);
-        cf.x.col(j) = fw.x.col(s.fw_offset + i);
-        cf.codes.col(j) = fw.codes.col(s.fw_offset + i);
+        cb.x.col(j) = backward_delta.x.col(s.field_offset + i);
+        cb.codes.col(j) = backward_delta.codes.col(s.field_offset + i);
+        cf.x.col(j) = forward_delta.x.col(s.fw_offset + i);
+        cf.codes.col(j) = forward_delta.codes.col(s.fw_offset + i);
       }
       delta->ForwardBatch(delta_params, &cb, false);
       delta->ForwardBatch(delta_params, &cf, false);
       std::vector<int> groups(m + 1);
       for (int j = 0; j <= m; ++j) groups[j] = j;
-      Eigen::MatrixXd d_b(B, m), d_f(B, m), g_b, g_f;
+      Eigen::MatrixXd d_b(num_bones, m), d_f(num_bones, m), g_b, g_f;
       for (int c = 0; c < 3; ++c) {
         for (int j = 0; j < m; ++j) {
           const RayScratch& s = scratch[members[j]];

@@ -158,25 +158,25 @@ class RayPipeline {
   struct RayWork {
     RayWork(int r, const Ray& ray, const RayParameters& p, RayScratch& s, RayEvaluation& ev,
             const RayLossWeights& weights, DensityModel density);
-    const int r;
+    const int ray_index;
     const Ray& ray;
-    const RayParameters& p;
-    RayScratch& s;
-    RayEvaluation& ev;
-    const int n;
+    const RayParameters& params;
+    RayScratch& scratch;
+    RayEvaluation& eval;
+    const int num_samples;
     const double* bones;
     const double* intr;
     const RayCompositeFunctor composite;
-    const int R;  // composite rows
-    int Rc = 0;   // rows of the reverse chain: R, or 1 in gradient mode
+    const int rows;      // composite rows
+    int chain_rows = 0;  // rows of the reverse chain: rows, or 1 in gradient mode
     const bool cycle3d;
-    std::vector<double> u;          // the composite functor's locals
+    std::vector<double> locals;     // the composite functor's locals
     std::vector<char> flow_active;  // samples the flow sums (weight >= kMinWarpTau)
     std::vector<WarpJacobian> flow_warp;
     std::vector<ProjectionJacobian> flow_proj;
     WarpJacobian cycle_warp;
     ProjectionJacobian cycle_proj;
-    RowMajorMatrix D;  // d residual / d u (R x |u|)
+    RowMajorMatrix locals_jacobian;  // d residual / d locals (rows x |locals|)
     const std::vector<double>* tau = nullptr;
   };
 
@@ -231,25 +231,25 @@ class RayPipeline {
   const bool jacobians;
   bool field_jacobians = true;
   const int num_rays;
-  const int B;
-  const int A;
+  const int num_bones;
+  const int appearance_dim;
   const double* sdf_params = nullptr;
   const double* color_params = nullptr;
   const double* embedding_params = nullptr;
   const double* delta_params = nullptr;
   const DeltaSkinning* delta = nullptr;
-  int P = 0;
-  int DL = 0;
+  int pose_code_dim = 0;
+  int delta_local_dim = 0;
   std::vector<RayScratch> scratch;
   std::vector<int> field_groups, match_groups, emb_groups, fw_groups;
   int total_samples = 0;
   int total_match = 0;
   int total_emb = 0;
   int total_fw = 0;
-  DeltaSkinningBatch bw, fw;
-  FieldBatch fb;
-  EmbeddingBatch eb;  // the match candidates (grid points)
-  EmbeddingBatch sb;  // the samples X*_i of rays with the rendered embedding
+  DeltaSkinningBatch backward_delta, forward_delta;
+  FieldBatch field_batch;
+  EmbeddingBatch match_batch;   // the match candidates (grid points)
+  EmbeddingBatch sample_batch;  // the samples X*_i of rays with the rendered embedding
 };
 
 }  // namespace banmo

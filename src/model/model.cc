@@ -184,6 +184,29 @@ void Model::VisitBlocks(Self& self, const Fn& fn) {
   }
 }
 
+std::optional<ParameterGroup> Model::BlockGroup(const std::string& name) {
+  using G = ParameterGroup;
+  // The last path component of VisitBlocks' names.
+  static const std::pair<const char*, G> kGroups[] = {{"sdf", G::kSdf},
+                                                      {"color", G::kColor},
+                                                      {"embedding", G::kEmbedding},
+                                                      {"log_beta", G::kLogBeta},
+                                                      {"bones", G::kBones},
+                                                      {"delta_skinning", G::kDeltaSkinning},
+                                                      {"rest_pose_code", G::kDeltaSkinning},
+                                                      {"intrinsics", G::kIntrinsics},
+                                                      {"appearance", G::kAppearance},
+                                                      {"root_delta", G::kRoot},
+                                                      {"bones_t", G::kBonesT},
+                                                      {"pose_code", G::kPoseCode}};
+  const size_t slash = name.rfind('/');
+  const std::string last = slash == std::string::npos ? name : name.substr(slash + 1);
+  for (const auto& [block, group] : kGroups) {
+    if (last == block) return group;
+  }
+  return std::nullopt;
+}
+
 void Model::ForEachBlock(
     const std::function<void(const std::string& name, double* data, int size)>& fn) {
   VisitBlocks(*this, fn);

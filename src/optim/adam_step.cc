@@ -192,13 +192,13 @@ void AdamStep(const StepContext& c, const std::vector<double*>& blocks,
   std::map<const double*, std::pair<BasisBlocks*, int>> basis_of;  // basis, frame
   std::map<std::pair<ParameterGroup, int>, BasisBlocks> bases;
   Model& model = sp.model();
-  for (const auto& [group, K, suffix] : {std::tuple<ParameterGroup, int, const char*>{
-                                             ParameterGroup::kBonesT, a.bone_basis, "bones_t"},
-                                         {ParameterGroup::kRoot, a.root_basis, "root_delta"}}) {
+  for (const auto& [group, K] :
+       {std::pair<ParameterGroup, int>{ParameterGroup::kBonesT, a.bone_basis},
+        {ParameterGroup::kRoot, a.root_basis}}) {
     if (K <= 0 || (group == ParameterGroup::kBonesT && model.num_bones() == 0)) continue;
     for (int v = 0; v < model.num_videos(); ++v) {
       BasisBlocks& basis = bases[{group, v}];
-      basis.moments_name = "video" + std::to_string(v) + "/" + suffix + "_basis";
+      basis.moments_name = BasisMomentsName(v, group);
       for (FrameParameters& f : model.video(v).frames) {
         double* p = group == ParameterGroup::kBonesT ? f.bones_t.data() : f.root_delta.data();
         basis_of[p] = {&basis, static_cast<int>(basis.frames.size())};

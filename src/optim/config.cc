@@ -40,14 +40,6 @@ RayLossWeights LossesConfig::RayWeights() const {
   return w;
 }
 
-BoneRegistrationConfig BoneRegistrationConfig::AfterLastBatch() const {
-  BoneRegistrationConfig out = *this;
-  out.match_weight = after_last_batch.match_weight.value_or(match_weight);
-  out.mask_weight = after_last_batch.mask_weight.value_or(mask_weight);
-  out.coverage_weight = after_last_batch.coverage_weight.value_or(coverage_weight);
-  return out;
-}
-
 namespace {
 
 // ---- Field lists (keys = field names). ----
@@ -583,96 +575,16 @@ constexpr long kMaxBatchSamples = 1L << 22;  // ~4M samples: a few GB of activat
 constexpr double kMaxLearningRate = 100.0;
 constexpr double kMaxLossWeight = 1e6;
 
-class Checker {
- public:
-  explicit Checker(const std::string& source) : source_(source) {}
+using Checker = OptionChecker;
 
-  template <class... Args>
-  [[noreturn]] void Fail(const std::string& key, Args&&... args) const {
-    ThrowInputError(source_, ": ", key, ": ", std::forward<Args>(args)...);
-  }
-  void Positive(const std::string& key, double v) const {
-    if (!(v > 0) || !std::isfinite(v)) Fail(key, "expected a finite number > 0, got ", v);
-  }
-  void Positive(const std::string& key, int v) const {
-    if (v <= 0) Fail(key, "expected an integer > 0, got ", v);
-  }
-  void NonNegative(const std::string& key, double v) const {
-    if (!(v >= 0) || !std::isfinite(v)) Fail(key, "expected a finite number >= 0, got ", v);
-  }
-  void NonNegative(const std::string& key, int v) const {
-    if (v < 0) Fail(key, "expected an integer >= 0, got ", v);
-  }
-  // v in (0, max] (finite).
-  void PositiveAtMost(const std::string& key, double v, double max) const {
-    if (!(v > 0 && v <= max)) Fail(key, "expected a number in (0, ", max, "], got ", v);
-  }
-  void PositiveAtMost(const std::string& key, int v, int max) const {
-    if (!(v > 0 && v <= max)) Fail(key, "expected an integer in [1, ", max, "], got ", v);
-  }
-  void Fraction(const std::string& key, double v) const {
-    if (!(v >= 0 && v <= 1)) Fail(key, "expected a fraction in [0, 1], got ", v);
-  }
-  // key[i] for each i: fractions of a stage, strictly increasing.
-  void IncreasingFractions(const std::string& key, const std::vector<double>& v) const {
-    for (size_t i = 0; i < v.size(); ++i) {
-      const std::string item = key + "[" + std::to_string(i) + "]";
-      Fraction(item, v[i]);
-      if (i > 0 && !(v[i] > v[i - 1])) {
-        Fail(item, "expected increasing fractions, got ", v[i], " after ", v[i - 1]);
-      }
-    }
-  }
-
-  // Fractions of a stage that schedule something at a batch
-  // (StageConfig::BatchAt): one that rounds to the batch count would come
-  // after the last batch and never run.
-  void BatchFractions(const std::string& key, const std::vector<double>& v, int batches) const {
-    IncreasingFractions(key, v);
-    for (size_t i = 0; i < v.size(); ++i) {
-      const long at = std::lround(v[i] * batches);
-      if (at >= batches) {
-        Fail(key + "[" + std::to_string(i) + "]", v[i], " of ", batches, " batches is batch ", at,
-             ", after the stage's last batch (", batches - 1,
-             "): it would never run; expected a fraction below ", (batches - 0.5) / batches);
-      }
-    }
-  }
-
- private:
-  const std::string& source_;
-};
-
-void CheckLoss(const Checker& c, const std::string& key, const LossConfig& loss) {
-  c.NonNegative(key + ".weight", loss.weight);
-  if (loss.weight > kMaxLossWeight) {
-    c.Fail(key + ".weight", "expected at most ", kMaxLossWeight, ", got ", loss.weight);
-  }
-  c.Positive(key + ".robust.scale", loss.robust.scale);
-}
-
-void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
-  if (s.name.empty()) c.Fail(p + ".name", "expected a non-empty name");
-  c.Positive(p + ".batches", s.batches);
-  c.PositiveAtMost(p + ".batch_rays", s.batch_rays, kMaxBatchRays);
-  c.PositiveAtMost(p + ".samples_per_ray", s.samples_per_ray, kMaxSamplesPerRay);
+// The rules of a stage that span several of its sections.
+void CheckStageRules(const Checker& c, const std::string& p, const StageConfig& s) {
   if (static_cast<long>(s.batch_rays) * (s.samples_per_ray + s.sampling.importance_samples) >
       kMaxBatchSamples) {
     c.Fail(p + ".batch_rays", "batch_rays x (samples_per_ray + sampling.importance_samples) = ",
            static_cast<long>(s.batch_rays) * (s.samples_per_ray + s.sampling.importance_samples),
            " samples per batch, expected at most ", kMaxBatchSamples);
   }
-
-  const std::string l = p + ".losses";
-  bool any_loss = false;
-  for (const LossTermInfo& info : kLossTable) {
-    const LossConfig& loss = s.losses[info.term];
-    CheckLoss(c, l + "." + info.key, loss);
-    any_loss = any_loss || loss.weight > 0;
-  }
-  if (!any_loss) c.Fail(l, "every loss weight is 0 (nothing to minimise)");
-  c.NonNegative(l + ".bone_inside_margin", s.losses.bone_inside_margin);
-
   ParameterGroupSet constant;
   for (size_t i = 0; i < s.constant.size(); ++i) {
     const std::string key = p + ".constant[" + std::to_string(i) + "]";
@@ -693,104 +605,17 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
     c.Fail(p + ".constant",
            "every parameter group is constant and there is no pose solve (nothing to optimise)");
   }
-
-  const std::string a = p + ".adam";
-  c.PositiveAtMost(a + ".lr", s.adam.lr, kMaxLearningRate);
-  if (!(s.adam.beta1 >= 0 && s.adam.beta1 < 1)) {
-    c.Fail(a + ".beta1", "expected a number in [0, 1), got ", s.adam.beta1);
-  }
-  if (!(s.adam.beta2 >= 0 && s.adam.beta2 < 1)) {
-    c.Fail(a + ".beta2", "expected a number in [0, 1), got ", s.adam.beta2);
-  }
-  c.Positive(a + ".epsilon", s.adam.epsilon);
-  c.NonNegative(a + ".weight_decay", s.adam.weight_decay);
-  c.Fraction(a + ".warmup_fraction", s.adam.warmup_fraction);
-  c.Fraction(a + ".final_lr_fraction", s.adam.final_lr_fraction);
-  c.PositiveAtMost(a + ".pose_lr_scale", s.adam.pose_lr_scale, kMaxLearningRate);
-  c.PositiveAtMost(a + ".bone_lr_scale", s.adam.bone_lr_scale, kMaxLearningRate);
-  c.PositiveAtMost(a + ".beta_lr_scale", s.adam.beta_lr_scale, kMaxLearningRate);
-  c.NonNegative(a + ".bone_basis", s.adam.bone_basis);
-  c.NonNegative(a + ".root_basis", s.adam.root_basis);
-
-  const std::string m = p + ".lm";
-  c.Positive(m + ".max_cg_iterations", s.lm.max_cg_iterations);
-  c.Positive(m + ".initial_radius", s.lm.initial_radius);
-  c.Positive(m + ".max_radius", s.lm.max_radius);
-  if (s.lm.max_radius < s.lm.initial_radius) {
-    c.Fail(m + ".max_radius", "expected >= lm.initial_radius (", s.lm.initial_radius, "), got ",
-           s.lm.max_radius);
-  }
-  c.Positive(m + ".iterations_per_batch", s.lm.iterations_per_batch);
-
-  const std::string g = p + ".sampling";
-  c.Fraction(g + ".foreground_fraction", s.sampling.foreground_fraction);
-  c.Fraction(g + ".boundary_fraction", s.sampling.boundary_fraction);
-  if (s.sampling.foreground_fraction + s.sampling.boundary_fraction > 1.0) {
-    c.Fail(g + ".boundary_fraction", "expected <= 1 - sampling.foreground_fraction (",
-           1.0 - s.sampling.foreground_fraction, "), got ", s.sampling.boundary_fraction);
-  }
-  c.Fraction(g + ".active_fraction", s.sampling.active_fraction);
-  c.NonNegative(g + ".importance_samples", s.sampling.importance_samples);
-  if (s.sampling.importance_samples > kMaxSamplesPerRay) {
-    c.Fail(g + ".importance_samples", "expected at most ", kMaxSamplesPerRay, ", got ",
-           s.sampling.importance_samples);
-  }
-  if (s.sampling.importance_samples > 0 && !s.sampling.importance_depth) {
-    c.Fail(g + ".importance_samples", "needs sampling.importance_depth: true (got ",
-           s.sampling.importance_samples, " added samples without the importance pass)");
-  }
-  if (s.sampling.min_sdf_sample && !s.sampling.importance_depth) {
-    c.Fail(g + ".min_sdf_sample",
-           "needs sampling.importance_depth: true (the minimum comes from the importance pass's "
-           "first rendering)");
-  }
-  c.NonNegative(g + ".near_far_margin", s.sampling.near_far_margin);
-  c.NonNegative(g + ".clip_margin", s.sampling.clip_margin);
   if (s.losses[LossTerm::kFlow].weight > 0 && s.sampling.flow_gaps.empty()) {
-    c.Fail(g + ".flow_gaps", "expected at least one gap when losses.flow.weight > 0");
+    c.Fail(p + ".sampling.flow_gaps", "expected at least one gap when losses.flow.weight > 0");
   }
-  for (size_t i = 0; i < s.sampling.flow_gaps.size(); ++i) {
-    c.Positive(g + ".flow_gaps[" + std::to_string(i) + "]", s.sampling.flow_gaps[i]);
-  }
-  c.PositiveAtMost(g + ".eikonal_points", s.sampling.eikonal_points, kMaxBatchRays);
-  c.PositiveAtMost(g + ".match_grid_points", s.sampling.match_grid_points, kMaxBatchRays);
-  c.Positive(g + ".match_top_k", s.sampling.match_top_k);
-  c.NonNegative(g + ".frames_per_batch", s.sampling.frames_per_batch);
-  if (s.sampling.unbiased_silhouette &&
-      !(s.sampling.foreground_fraction + s.sampling.boundary_fraction < 1.0)) {
-    c.Fail(g + ".unbiased_silhouette",
-           "needs sampling.foreground_fraction + sampling.boundary_fraction < 1 (most background "
-           "pixels are never drawn at 1)");
-  }
-  if (s.sampling.match_top_k > s.sampling.match_grid_points) {
-    c.Fail(g + ".match_top_k", "expected <= sampling.match_grid_points (",
-           s.sampling.match_grid_points, "), got ", s.sampling.match_top_k);
-  }
-
-  const std::string h = p + ".schedule";
-  c.BatchFractions(h + ".bone_reinit_at", s.schedule.bone_reinit_at, s.batches);
-  c.Fraction(h + ".freeze_after_reinit", s.schedule.freeze_after_reinit);
-  if (s.schedule.freeze_after_reinit > 0.0 && s.schedule.bone_reinit_at.empty()) {
-    c.Fail(h + ".freeze_after_reinit",
-           "needs schedule.bone_reinit_at (the freeze follows each re-initialisation)");
-  }
-  c.NonNegative(h + ".bounds_refresh_every", s.schedule.bounds_refresh_every);
-  c.NonNegative(h + ".bounds_refresh_max_mask_loss", s.schedule.bounds_refresh_max_mask_loss);
-  c.Fraction(h + ".anneal_end_fraction", s.schedule.anneal_end_fraction);
-  c.NonNegative(h + ".delta_skinning_from", s.schedule.delta_skinning_from);
-  c.Fraction(h + ".root_free_from", s.schedule.root_free_from);
-  c.NonNegative(h + ".unbiased_silhouette_from", s.schedule.unbiased_silhouette_from);
-  c.NonNegative(h + ".neus_from", s.schedule.neus_from);
   if (s.schedule.unbiased_silhouette_from < 1.0 &&
       !(s.sampling.foreground_fraction + s.sampling.boundary_fraction < 1.0)) {
-    c.Fail(h + ".unbiased_silhouette_from",
+    c.Fail(p + ".schedule.unbiased_silhouette_from",
            "needs sampling.foreground_fraction + sampling.boundary_fraction < 1 (most background "
            "pixels are never drawn at 1)");
   }
 
   const std::string q = p + ".pose_solve";
-  c.BatchFractions(q + ".at", s.pose_solve.at, s.batches);
-  c.NonNegative(q + ".every", s.pose_solve.every);
   if (pose_solves && constant.Contains(ParameterGroup::kRoot) && !s.pose_solve.bones) {
     c.Fail(q + (s.pose_solve.at.empty() ? ".every" : ".at"),
            "pose solves move the root poses, which this stage holds constant (set "
@@ -811,47 +636,15 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
            " comes before schedule.root_free_from (", s.schedule.root_free_from,
            "), while the root poses are held constant");
   }
-  c.Positive(q + ".rays", s.pose_solve.rays);
-  c.Positive(q + ".iterations", s.pose_solve.iterations);
-  c.NonNegative(q + ".search_ratio", s.pose_solve.search_ratio);
-  c.Positive(q + ".search_rotations", s.pose_solve.search_rotations);
-  c.Positive(q + ".search_keep", s.pose_solve.search_keep);
-  if (s.pose_solve.search_keep > s.pose_solve.search_rotations) {
-    c.Fail(q + ".search_keep", "expected <= pose_solve.search_rotations (",
-           s.pose_solve.search_rotations, "), got ", s.pose_solve.search_keep);
-  }
 
   const std::string r = p + ".bone_registration";
   const BoneRegistrationConfig& reg = s.bone_registration;
-  c.IncreasingFractions(r + ".at", reg.at);
   if (!reg.at.empty() && constant.Contains(ParameterGroup::kBonesT)) {
     c.Fail(r + ".at",
            "a bone registration moves the bone transforms, which this stage holds "
            "constant (bones_t)");
   }
-  c.Positive(r + ".resolution", reg.resolution);
-  c.Positive(r + ".vertices", reg.vertices);
-  c.Positive(r + ".match_pixels", reg.match_pixels);
-  c.Positive(r + ".match_weight", reg.match_weight);
-  c.Positive(r + ".huber_px", reg.huber_px);
-  c.NonNegative(r + ".joint_weight", reg.joint_weight);
-  c.Fraction(r + ".joint_min_weight", reg.joint_min_weight);
-  c.NonNegative(r + ".joint_points", reg.joint_points);
-  c.NonNegative(r + ".smooth_weight", reg.smooth_weight);
-  c.NonNegative(r + ".rest_weight", reg.rest_weight);
-  c.Positive(r + ".visible_tolerance", reg.visible_tolerance);
-  c.Positive(r + ".iterations", reg.iterations);
-  c.NonNegative(r + ".mask_weight", reg.mask_weight);
-  c.Positive(r + ".mask_points", reg.mask_points);
-  c.NonNegative(r + ".coverage_weight", reg.coverage_weight);
-  c.Positive(r + ".coverage_pixels", reg.coverage_pixels);
-  c.Positive(r + ".coverage_rounds", reg.coverage_rounds);
   const BoneRegistrationFinalWeights& last = reg.after_last_batch;
-  if (last.match_weight) c.Positive(r + ".after_last_batch.match_weight", *last.match_weight);
-  if (last.mask_weight) c.NonNegative(r + ".after_last_batch.mask_weight", *last.mask_weight);
-  if (last.coverage_weight) {
-    c.NonNegative(r + ".after_last_batch.coverage_weight", *last.coverage_weight);
-  }
   const bool registers_last = std::any_of(reg.at.begin(), reg.at.end(),
                                           [&](double f) { return s.BatchAt(f) == s.batches; });
   if ((last.match_weight || last.mask_weight || last.coverage_weight) && !reg.at.empty() &&
@@ -860,18 +653,148 @@ void CheckStage(const Checker& c, const std::string& p, const StageConfig& s) {
            "weights for a registration after the stage's last batch, but no fraction in "
            "bone_registration.at registers there (1.0 does)");
   }
-
   if (s.bone_steps_articulated && s.bone_steps_about_centres) {
     c.Fail(p + ".bone_steps_articulated",
            "cannot be combined with bone_steps_about_centres (each sets how a bone transform "
            "steps): choose one");
   }
-
-  c.NonNegative(p + ".checkpoint_every", s.checkpoint_every);
-  c.NonNegative(p + ".log_every", s.log_every);
 }
 
 }  // namespace
+
+void LossConfig::Check(const OptionChecker& c, const std::string& key) const {
+  c.NonNegative(key + ".weight", weight);
+  if (weight > kMaxLossWeight) {
+    c.Fail(key + ".weight", "expected at most ", kMaxLossWeight, ", got ", weight);
+  }
+  c.Positive(key + ".robust.scale", robust.scale);
+}
+
+void LossesConfig::Check(const OptionChecker& c, const std::string& key) const {
+  bool any_loss = false;
+  for (const LossTermInfo& info : kLossTable) {
+    const LossConfig& loss = (*this)[info.term];
+    loss.Check(c, key + "." + info.key);
+    any_loss = any_loss || loss.weight > 0;
+  }
+  if (!any_loss) c.Fail(key, "every loss weight is 0 (nothing to minimise)");
+  c.NonNegative(key + ".bone_inside_margin", bone_inside_margin);
+}
+
+void AdamConfig::Check(const OptionChecker& c, const std::string& a) const {
+  c.PositiveAtMost(a + ".lr", lr, kMaxLearningRate);
+  if (!(beta1 >= 0 && beta1 < 1)) c.Fail(a + ".beta1", "expected a number in [0, 1), got ", beta1);
+  if (!(beta2 >= 0 && beta2 < 1)) c.Fail(a + ".beta2", "expected a number in [0, 1), got ", beta2);
+  c.Positive(a + ".epsilon", epsilon);
+  c.NonNegative(a + ".weight_decay", weight_decay);
+  c.Fraction(a + ".warmup_fraction", warmup_fraction);
+  c.Fraction(a + ".final_lr_fraction", final_lr_fraction);
+  c.PositiveAtMost(a + ".pose_lr_scale", pose_lr_scale, kMaxLearningRate);
+  c.PositiveAtMost(a + ".bone_lr_scale", bone_lr_scale, kMaxLearningRate);
+  c.PositiveAtMost(a + ".beta_lr_scale", beta_lr_scale, kMaxLearningRate);
+  c.NonNegative(a + ".bone_basis", bone_basis);
+  c.NonNegative(a + ".root_basis", root_basis);
+}
+
+void LmConfig::Check(const OptionChecker& c, const std::string& m) const {
+  c.Positive(m + ".max_cg_iterations", max_cg_iterations);
+  c.Positive(m + ".initial_radius", initial_radius);
+  c.Positive(m + ".max_radius", max_radius);
+  if (max_radius < initial_radius) {
+    c.Fail(m + ".max_radius", "expected >= lm.initial_radius (", initial_radius, "), got ",
+           max_radius);
+  }
+  c.Positive(m + ".iterations_per_batch", iterations_per_batch);
+}
+
+void SamplingConfig::Check(const OptionChecker& c, const std::string& g) const {
+  c.Fraction(g + ".foreground_fraction", foreground_fraction);
+  c.Fraction(g + ".boundary_fraction", boundary_fraction);
+  if (foreground_fraction + boundary_fraction > 1.0) {
+    c.Fail(g + ".boundary_fraction", "expected <= 1 - sampling.foreground_fraction (",
+           1.0 - foreground_fraction, "), got ", boundary_fraction);
+  }
+  c.Fraction(g + ".active_fraction", active_fraction);
+  c.NonNegative(g + ".importance_samples", importance_samples);
+  if (importance_samples > kMaxSamplesPerRay) {
+    c.Fail(g + ".importance_samples", "expected at most ", kMaxSamplesPerRay, ", got ",
+           importance_samples);
+  }
+  if (importance_samples > 0 && !importance_depth) {
+    c.Fail(g + ".importance_samples", "needs sampling.importance_depth: true (got ",
+           importance_samples, " added samples without the importance pass)");
+  }
+  if (min_sdf_sample && !importance_depth) {
+    c.Fail(g + ".min_sdf_sample",
+           "needs sampling.importance_depth: true (the minimum comes from the importance pass's "
+           "first rendering)");
+  }
+  c.NonNegative(g + ".near_far_margin", near_far_margin);
+  c.NonNegative(g + ".clip_margin", clip_margin);
+  for (size_t i = 0; i < flow_gaps.size(); ++i) {
+    c.Positive(g + ".flow_gaps[" + std::to_string(i) + "]", flow_gaps[i]);
+  }
+  c.PositiveAtMost(g + ".eikonal_points", eikonal_points, kMaxBatchRays);
+  c.PositiveAtMost(g + ".match_grid_points", match_grid_points, kMaxBatchRays);
+  c.Positive(g + ".match_top_k", match_top_k);
+  c.NonNegative(g + ".frames_per_batch", frames_per_batch);
+  if (unbiased_silhouette && !(foreground_fraction + boundary_fraction < 1.0)) {
+    c.Fail(g + ".unbiased_silhouette",
+           "needs sampling.foreground_fraction + sampling.boundary_fraction < 1 (most background "
+           "pixels are never drawn at 1)");
+  }
+  if (match_top_k > match_grid_points) {
+    c.Fail(g + ".match_top_k", "expected <= sampling.match_grid_points (", match_grid_points,
+           "), got ", match_top_k);
+  }
+}
+
+void ScheduleConfig::Check(const OptionChecker& c, const std::string& h, int batches) const {
+  c.BatchFractions(h + ".bone_reinit_at", bone_reinit_at, batches);
+  c.Fraction(h + ".freeze_after_reinit", freeze_after_reinit);
+  if (freeze_after_reinit > 0.0 && bone_reinit_at.empty()) {
+    c.Fail(h + ".freeze_after_reinit",
+           "needs schedule.bone_reinit_at (the freeze follows each re-initialisation)");
+  }
+  c.NonNegative(h + ".bounds_refresh_every", bounds_refresh_every);
+  c.NonNegative(h + ".bounds_refresh_max_mask_loss", bounds_refresh_max_mask_loss);
+  c.Fraction(h + ".anneal_end_fraction", anneal_end_fraction);
+  c.NonNegative(h + ".delta_skinning_from", delta_skinning_from);
+  c.Fraction(h + ".root_free_from", root_free_from);
+  c.NonNegative(h + ".unbiased_silhouette_from", unbiased_silhouette_from);
+  c.NonNegative(h + ".neus_from", neus_from);
+}
+
+void PoseSolveConfig::Check(const OptionChecker& c, const std::string& q, int batches) const {
+  c.BatchFractions(q + ".at", at, batches);
+  c.NonNegative(q + ".every", every);
+  c.Positive(q + ".rays", rays);
+  c.Positive(q + ".iterations", iterations);
+  c.NonNegative(q + ".search_ratio", search_ratio);
+  c.Positive(q + ".search_rotations", search_rotations);
+  c.Positive(q + ".search_keep", search_keep);
+  if (search_keep > search_rotations) {
+    c.Fail(q + ".search_keep", "expected <= pose_solve.search_rotations (", search_rotations,
+           "), got ", search_keep);
+  }
+}
+
+void StageConfig::Check(const OptionChecker& c, const std::string& p) const {
+  if (name.empty()) c.Fail(p + ".name", "expected a non-empty name");
+  c.Positive(p + ".batches", batches);
+  c.PositiveAtMost(p + ".batch_rays", batch_rays, kMaxBatchRays);
+  c.PositiveAtMost(p + ".samples_per_ray", samples_per_ray, kMaxSamplesPerRay);
+  losses.Check(c, p + ".losses");
+  adam.Check(c, p + ".adam");
+  lm.Check(c, p + ".lm");
+  sampling.Check(c, p + ".sampling");
+  schedule.Check(c, p + ".schedule", batches);
+  pose_solve.Check(c, p + ".pose_solve", batches);
+  bone_registration.Check(c, p + ".bone_registration");
+  c.NonNegative(p + ".checkpoint_every", checkpoint_every);
+  c.NonNegative(p + ".log_every", log_every);
+  CheckStageRules(c, p, *this);
+}
 
 SamplingConfig SamplingAt(const StageConfig& stage, double fraction) {
   SamplingConfig sampling = stage.sampling;
@@ -988,7 +911,7 @@ void CheckSolverConfig(const SolverConfig& config, const std::string& source) {
   if (config.stages.empty()) c.Fail("stages", "expected a non-empty list of stages");
   for (size_t i = 0; i < config.stages.size(); ++i) {
     const std::string p = "stages[" + std::to_string(i) + "]";
-    CheckStage(c, p, config.stages[i]);
+    config.stages[i].Check(c, p);
     if (config.stages[i].schedule.delta_skinning_from < 1.0 && !m.delta_skinning.enabled) {
       c.Fail(p + ".schedule.delta_skinning_from",
              "delta skinning is switched on here but the model has none: set "

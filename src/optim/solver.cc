@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <map>
 #include <optional>
+#include <sstream>
 
 #include "banmo/deform/bone_centres.h"
 #include "banmo/extract/extract.h"
@@ -15,13 +16,15 @@
 #include "banmo/losses/ray_batch.h"
 #include "banmo/losses/regularizers.h"
 #include "banmo/optim/auto_size.h"
-#include "banmo/optim/bone_registration.h"
 #include "banmo/optim/bounds_refresh.h"
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/pose_solve.h"
 #include "banmo/optim/ray_sampler.h"
-#include "banmo/optim/root_pose_error.h"
+#include "banmo/optim/solve_reporter.h"
+#include "banmo/registration/bone_registration.h"
+#include "banmo/registration/root_pose_error.h"
 #include "banmo/util/error.h"
+#include "banmo/util/format.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
@@ -119,9 +122,19 @@ struct Solver::RunContext {
   RunContext(const Dataset& dataset, const SolveOptions& options, SolverState* state)
       : options(options), state(state), sampler(dataset) {
     sampler.set_error_cache(state->error_cache);
+    reporter = options.reporter != nullptr ? options.reporter : &printing_reporter;
+  }
+  // Progress lines and events unless options.quiet; warnings always.
+  bool Says(SolveMessageKind kind) const {
+    return kind == SolveMessageKind::kWarning || !options.quiet;
+  }
+  void Say(SolveMessageKind kind, const StageConfig& stage, int batch, std::string text) {
+    if (Says(kind)) reporter->Report(SolveMessage{kind, stage.name, batch, std::move(text)});
   }
   const SolveOptions& options;
   SolverState* state;
+  PrintingReporter printing_reporter;
+  SolveReporter* reporter = nullptr;  // options.reporter, else printing_reporter
   RaySampler sampler;
   std::map<const double*, std::string> block_names;  // Model::ForEachBlock
   std::string resolved_config;
@@ -231,42 +244,39 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
       config_.stages[s - 1].bone_steps_articulated != stage.bone_steps_articulated) {
     // The bone transforms' tangent space changes (3 B + 3 against 6 B):
     // their Adam moments, temporal bases' included, start again.
-    state->DropAdamMoments("bones_t");
+    state->DropAdamMoments({ParameterGroup::kBonesT});
   }
   run.summary.name = stage.name;
-  StageProblem sp(model_.get(), stage, c->extra_constant);
+  StageProblem problem(model_.get(), stage, c->extra_constant);
   run.timer.Reset();
   run.callback_start = c->callback_seconds;
-  if (!options.quiet) {
-    std::printf("[%s] stage %d/%zu: %d batches x %d rays, %d samples, step rule %s\n",
-                stage.name.c_str(), s + 1, config_.stages.size(), stage.batches, stage.batch_rays,
-                stage.samples_per_ray, EnumName(stage.step_rule));
-    std::fflush(stdout);
-  }
+  c->Say(SolveMessageKind::kStage, stage, run.start,
+         StrPrintf("stage %d/%zu: %d batches x %d rays, %d samples, step rule %s", s + 1,
+                   config_.stages.size(), stage.batches, stage.batch_rays, stage.samples_per_ray,
+                   EnumName(stage.step_rule)));
   for (int batch_index = run.start; batch_index < stage.batches; ++batch_index) {
     if (g_interrupted ||
         (options.stop_after_batches >= 0 && state->total_batches >= options.stop_after_batches)) {
       Save(s, batch_index, c);
       result->interrupted = true;
       result->stopped = !g_interrupted;
-      if (!options.quiet) {
-        std::printf("[%s] stopped at batch %d; checkpoint written%s\n", stage.name.c_str(),
-                    batch_index, options.out_dir.empty() ? " (none: no --out)" : "");
-      }
+      c->Say(SolveMessageKind::kStage, stage, batch_index,
+             StrPrintf("stopped at batch %d; checkpoint written%s", batch_index,
+                       options.out_dir.empty() ? " (none: no --out)" : ""));
       run.summary.batches = batch_index - run.start;
       result->stages.push_back(run.summary);
       return false;
     }
     try {
-      RunBatch(batch_index, &run, &sp, c, result);
+      RunBatch(batch_index, &run, &problem, c, result);
     } catch (const DivergenceError& e) {
       StopOnDivergence(s, batch_index, e.what(), c);
     }
   }
-  sp.ClearMinibatch();
+  problem.ClearMinibatch();
   // Registrations at the stage's end (`at` 1.0): after its last step, before
   // the checkpoint of the next stage.
-  RegisterBones(stage.batches, stage, &sp, c);
+  RegisterBones(stage.batches, stage, &problem, c);
   StageSummary& summary = run.summary;
   summary.batches = stage.batches - run.start;
   summary.seconds = run.Seconds(*c);
@@ -277,35 +287,32 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   result->stages.push_back(summary);
   state->batch = 0;
   Save(s + 1, 0, c);
-  if (!options.quiet) {
-    std::printf("[%s] done: %d batches in %.1f s (%.0f rays/s)%s\n", stage.name.c_str(),
-                summary.batches, summary.seconds, summary.rays_per_second,
-                summary.finite ? "" : " -- NON-FINITE PARAMETERS");
-    std::fflush(stdout);
-  }
+  c->Say(SolveMessageKind::kStage, stage, stage.batches,
+         StrPrintf("done: %d batches in %.1f s (%.0f rays/s)%s", summary.batches, summary.seconds,
+                   summary.rays_per_second, summary.finite ? "" : " -- NON-FINITE PARAMETERS"));
   return true;
 }
 
-void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunContext* c,
+void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* problem, RunContext* c,
                       SolveResult* result) {
   const StageConfig& stage = *run->stage;
   SolverState* state = c->state;
   const double fraction = static_cast<double>(batch_index) / std::max(1, stage.batches);
-  RunSchedules(batch_index, fraction, *run, sp, c, result);
+  RunSchedules(batch_index, fraction, *run, problem, c, result);
 
   // ---- The minibatch. ----
-  sp->ClearMinibatch();
-  sp->ScheduleGroups(batch_index);
-  std::vector<Ray> rays = SampleRays(stage, fraction, sp->batch(), &c->sampler, &state->rng);
+  problem->ClearMinibatch();
+  problem->ScheduleGroups(batch_index);
+  std::vector<Ray> rays = SampleRays(stage, fraction, problem->batch(), &c->sampler, &state->rng);
   const Eigen::Matrix3Xd grid =
       UniformPoints(bounds_, stage.sampling.match_grid_points, &state->rng);
-  sp->SetMinibatch(std::move(rays), grid, bounds_, &state->rng);
+  problem->SetMinibatch(std::move(rays), grid, bounds_, &state->rng);
 
   // ---- The step. ----
   // Losses at the batch's starting point, for progress and active sampling,
   // from the batch's value cache (Adam: filled by its gradient evaluation,
   // so no extra forward pass).
-  const RayBatch& batch = sp->batch();
+  const RayBatch& batch = problem->batch();
   TermLosses losses;
   auto record_losses = [&] {
     std::vector<double> errors(batch.num_rays(), 0.0);
@@ -326,29 +333,31 @@ void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunConte
     c->sampler.RecordErrors(batch.rays(), errors);
   };
   StepContext step;
-  step.problem = sp;
+  step.problem = problem;
   step.stage = &stage;
   step.state = state;
   step.batch = batch_index;
   step.adam_gradient_from_ceres = c->options.adam_gradient_from_ceres;
   step.block_names = &c->block_names;
   TakeStep(step, record_losses);
-  sp->Restore();
+  problem->Restore();
   internal::CheckFiniteAfterBatch(losses, *model_, bounds_, stage,
                                   LearningRate(stage.adam, batch_index, stage.batches));
   if (internal::LossRoseSharply(losses, &run->first_total_loss) && !run->warned_loss_rise) {
     run->warned_loss_rise = true;
-    LOG(WARNING) << "[" << stage.name << "] batch " << batch_index + 1 << ": the total loss rose "
-                 << "above " << internal::kLossRiseFactor << " x its value at the stage's first "
-                 << "batch (" << run->first_total_loss << "): the solve may be diverging; lower "
-                 << "adam.lr or the largest loss weight if it does not recover";
+    std::ostringstream text;
+    text << "batch " << batch_index + 1 << ": the total loss rose above "
+         << internal::kLossRiseFactor << " x its value at the stage's first batch ("
+         << run->first_total_loss << "): the solve may be diverging; lower adam.lr or the "
+         << "largest loss weight if it does not recover";
+    c->Say(SolveMessageKind::kWarning, stage, batch_index + 1, text.str());
   }
 
   run->rays_done += batch.num_rays();
   ++state->total_batches;
   if (batch_index == run->start) run->summary.first_losses = losses;
   run->summary.last_losses = losses;
-  ReportBatch(batch_index, *run, losses, *c);
+  ReportBatch(batch_index, *run, losses, c);
   const bool last = batch_index + 1 == stage.batches;
   if (stage.checkpoint_every > 0 && (batch_index + 1) % stage.checkpoint_every == 0 && !last) {
     Save(run->index, batch_index + 1, c);
@@ -369,29 +378,32 @@ void Solver::RunBatch(int batch_index, StageRun* run, StageProblem* sp, RunConte
 }
 
 void Solver::ReportBatch(int batch_index, const StageRun& run, const TermLosses& losses,
-                         const RunContext& c) const {
+                         RunContext* c) const {
   const StageConfig& stage = *run.stage;
   const bool last = batch_index + 1 == stage.batches;
-  if (c.options.quiet || !(batch_index % std::max(1, stage.log_every) == 0 || last)) return;
-  const double secs = run.Seconds(c);
+  if (!c->Says(SolveMessageKind::kBatch) ||
+      !(batch_index % std::max(1, stage.log_every) == 0 || last)) {
+    return;
+  }
+  const double secs = run.Seconds(*c);
   const double rate = run.rays_done / std::max(secs, 1e-9);
   const double eta = (stage.batches - batch_index - 1) * stage.batch_rays / std::max(rate, 1e-9);
-  std::printf("[%s] %5d/%d", stage.name.c_str(), batch_index + 1, stage.batches);
+  std::string text = StrPrintf("%5d/%d", batch_index + 1, stage.batches);
   double total = 0.0;
   for (const auto& [name, value] : losses) {
-    std::printf(" %s=%.4g", name.c_str(), value);
+    text += StrPrintf(" %s=%.4g", name.c_str(), value);
     total += value;
   }
-  std::printf(" | total=%.4g", total);
+  text += StrPrintf(" | total=%.4g", total);
   if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(*model_, dataset_)) {
-    std::printf(" | root rot err %.1f/%.1f deg", e->mean_deg, e->p90_deg);
+    text += StrPrintf(" | root rot err %.1f/%.1f deg", e->mean_deg, e->p90_deg);
     if (model_->num_bones() > 0) {
       const std::optional<RootPoseErrors> body = ComputeBodyPoseErrors(*model_, dataset_);
-      std::printf(", body %.1f/%.1f", body->mean_deg, body->p90_deg);
+      text += StrPrintf(", body %.1f/%.1f", body->mean_deg, body->p90_deg);
     }
   }
-  std::printf(" | %.0f rays/s | ETA %.0fs\n", rate, eta);
-  std::fflush(stdout);
+  text += StrPrintf(" | %.0f rays/s | ETA %.0fs", rate, eta);
+  c->Say(SolveMessageKind::kBatch, stage, batch_index + 1, std::move(text));
 }
 
 std::vector<Ray> Solver::SampleRays(const StageConfig& stage, double fraction,
@@ -421,8 +433,8 @@ std::vector<Ray> Solver::SampleRays(const StageConfig& stage, double fraction,
 
 // Schedules fire at their batch also when a resumed run starts there:
 // checkpoints are written before a batch's schedules run.
-void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run, StageProblem* sp,
-                          RunContext* c, SolveResult* result) {
+void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
+                          StageProblem* problem, RunContext* c, SolveResult* result) {
   const StageConfig& stage = *run.stage;
   Model& model = *model_;
   if (stage.schedule.anneal_end_fraction > 0) {
@@ -436,51 +448,48 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
   }
   if (fraction >= stage.schedule.neus_from && model.options().density != DensityModel::kNeus) {
     model.SetDensity(DensityModel::kNeus);
-    sp->batch().Invalidate();  // cached values rendered with the old density
-    if (!c->options.quiet) {
-      std::printf("[%s] density: NeuS from batch %d on\n", stage.name.c_str(), batch_index);
-      std::fflush(stdout);
-    }
+    problem->batch().Invalidate();  // cached values rendered with the old density
+    c->Say(SolveMessageKind::kEvent, stage, batch_index,
+           StrPrintf("density: NeuS from batch %d on", batch_index));
   }
   for (double at : stage.schedule.bone_reinit_at) {
     if (model.num_bones() > 0 && batch_index == stage.BatchAt(at)) {
-      ReinitializeBones(stage.schedule.bone_reinit_keep_motion, stage.schedule.bone_sites,
-                        c->state);
+      ReinitializeBones(batch_index, stage, c);
       const int freeze = stage.BatchAt(stage.schedule.freeze_after_reinit);
-      if (!c->options.quiet && freeze > 0) {
-        std::printf("[%s] bones re-initialised; shape, appearance and root held for %d batches\n",
-                    stage.name.c_str(), freeze);
-        std::fflush(stdout);
+      if (freeze > 0) {
+        c->Say(SolveMessageKind::kEvent, stage, batch_index,
+               StrPrintf("bones re-initialised; shape, appearance and root held for %d batches",
+                         freeze));
       }
     }
   }
-  RegisterBones(batch_index, stage, sp, c);
+  RegisterBones(batch_index, stage, problem, c);
   // Automatic model sizing (optim/auto_size.h), first stage only.
   const AutoSizeOptions& auto_size = config_.model.auto_size;
   for (double at : auto_size.grow_at) {
     if (!auto_size.enabled || run.index != 0 || batch_index != stage.BatchAt(at)) {
       continue;
     }
-    Grow(batch_index, run, sp, c, result);
+    Grow(batch_index, run, problem, c, result);
   }
   bool solve_poses =
       stage.pose_solve.every > 0 && batch_index > 0 && batch_index % stage.pose_solve.every == 0;
   for (double at : stage.pose_solve.at)
     solve_poses = solve_poses || batch_index == stage.BatchAt(at);
-  if (solve_poses) SolvePoses(batch_index, run, sp, c, result);
+  if (solve_poses) SolvePoses(batch_index, run, problem, c, result);
 }
 
-void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, RunContext* c,
+void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
                         SolveResult* result) {
   const StageConfig& stage = *run.stage;
   FramePoseContext context;
-  context.batch = sp->batch().options();
+  context.batch = problem->batch().options();
   context.batch.weights[LossTerm::kCycle3d] = 0.0;  // no view of the pose
-  context.robust = sp->ray_robust();
-  context.delta_skinning = sp->batch().delta_skinning();
+  context.robust = problem->ray_robust();
+  context.delta_skinning = problem->batch().delta_skinning();
   context.match_grid = UniformPoints(bounds_, stage.sampling.match_grid_points, &c->state->rng);
   // The root only once the schedule frees it (root_free_from).
-  context.solve_root = !sp->ConfiguredConstant(ParameterGroup::kRoot) &&
+  context.solve_root = !problem->ConfiguredConstant(ParameterGroup::kRoot) &&
                        batch_index >= stage.BatchAt(stage.schedule.root_free_from);
   context.solve_bones = stage.pose_solve.bones && model_->num_bones() > 0;
   if (!context.solve_root && !context.solve_bones) return;
@@ -490,24 +499,21 @@ void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* sp, 
   report.stage = run.index;
   report.batch = batch_index;
   // The solved blocks jumped: their Adam moments are stale.
-  if (context.solve_root) c->state->DropAdamMoments("/root_delta");
-  if (context.solve_bones) c->state->DropAdamMoments("/bones_t");
-  sp->batch().Invalidate();
-  if (!c->options.quiet) {
-    std::string errors;
+  if (context.solve_root) c->state->DropAdamMoments({ParameterGroup::kRoot});
+  if (context.solve_bones) c->state->DropAdamMoments({ParameterGroup::kBonesT});
+  problem->batch().Invalidate();
+  if (c->Says(SolveMessageKind::kEvent)) {
+    std::string text = report.Describe();
     if (const std::optional<RootPoseErrors> e = ComputeRootPoseErrors(*model_, dataset_)) {
-      char text[96];
-      std::snprintf(text, sizeof(text), "; root rotation error now %.1f deg mean, %.1f deg p90",
-                    e->mean_deg, e->p90_deg);
-      errors = text;
+      text += StrPrintf("; root rotation error now %.1f deg mean, %.1f deg p90", e->mean_deg,
+                        e->p90_deg);
     }
-    std::printf("[%s] %s%s\n", stage.name.c_str(), report.Describe().c_str(), errors.c_str());
-    std::fflush(stdout);
+    c->Say(SolveMessageKind::kEvent, stage, batch_index, std::move(text));
   }
   result->pose_solves.push_back(std::move(report));
 }
 
-void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProblem* sp,
+void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProblem* problem,
                            RunContext* c) {
   for (double at : stage.bone_registration.at) {
     if (model_->num_bones() == 0 || batch_index != stage.BatchAt(at)) continue;
@@ -518,50 +524,38 @@ void Solver::RegisterBones(int batch_index, const StageConfig& stage, StageProbl
     const BoneRegistrationReport report = RegisterBoneMotion(
         model_.get(), dataset_, bounds_, config, static_cast<uint32_t>(c->state->rng()));
     if (report.registered) {
-      c->state->DropAdamMoments("bones_t");  // the bone transforms jumped
-      sp->batch().Invalidate();
+      c->state->DropAdamMoments({ParameterGroup::kBonesT});  // the bone transforms jumped
+      problem->batch().Invalidate();
     }
-    if (!c->options.quiet) {
-      std::printf("[%s] %s\n", stage.name.c_str(), report.Describe().c_str());
-      std::fflush(stdout);
-    }
+    c->Say(SolveMessageKind::kEvent, stage, batch_index, report.Describe());
   }
 }
 
 // A grow step of automatic sizing: the problem drops every block, the model
 // grows, the blocks come back (new sizes and addresses) and the Adam moments
 // follow their entries.
-void Solver::Grow(int batch_index, const StageRun& run, StageProblem* sp, RunContext* c,
+void Solver::Grow(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
                   SolveResult* result) {
   const StageConfig& stage = *run.stage;
   Timer grow_timer;
-  sp->RemoveAllBlocks();
+  problem->RemoveAllBlocks();
   AutoSizeRemaps remaps;
   AutoSizeEvent event =
       AutoSizeGrow(config_.model.auto_size, c->sampler, stage.sampling, stage.samples_per_ray,
                    bounds_, &c->state->rng, model_.get(), &remaps);
   event.stage = run.index;
   event.batch = batch_index;
-  for (auto m = c->state->adam.begin(); m != c->state->adam.end();) {
-    // A temporal basis's coefficients span every bone of a video: their
-    // moments start again when the bones change (AdamConfig::bone_basis).
-    const bool basis =
-        m->first.size() > 6 && m->first.compare(m->first.size() - 6, 6, "_basis") == 0;
-    if (basis) {
-      m = c->state->adam.erase(m);
-      continue;
-    }
-    if (const TangentRemap* remap = remaps.For(m->first)) remap->Apply(&m->second.m, &m->second.v);
-    ++m;
+  // A temporal basis's coefficients span every bone of a video: their
+  // moments start again when the bones change (AdamConfig::bone_basis).
+  c->state->DropAdamBasisMoments();
+  for (auto& [name, moments] : c->state->adam) {
+    if (const TangentRemap* remap = remaps.For(name)) remap->Apply(&moments.m, &moments.v);
   }
   NameBlocks(c);
-  sp->AddModelBlocks();
-  sp->batch().Invalidate();
+  problem->AddModelBlocks();
+  problem->batch().Invalidate();
   event.seconds = grow_timer.Seconds();
-  if (!c->options.quiet) {
-    std::printf("[%s] %s\n", stage.name.c_str(), event.Describe().c_str());
-    std::fflush(stdout);
-  }
+  c->Say(SolveMessageKind::kEvent, stage, batch_index, event.Describe());
   result->auto_size.push_back(std::move(event));
 }
 
@@ -575,22 +569,23 @@ void Solver::RefreshBounds(int batch_index, const StageConfig& stage, RunContext
                                                        stage.schedule.bounds_refresh_max_mask_loss);
   if (r.kept > 0.0) {
     ++result->bounds_refreshes_held;
-    if (!c->options.quiet) {
-      const Eigen::Vector3d from = bounds_.sizes(), surface = r.surface.sizes(), to = r.box.sizes();
-      std::printf(
-          "[%s] bounds refresh at batch %d held: the surface's box (%.2f x %.2f x %.2f) meets "
-          "%.1f %% of the masks' object pixels against %.1f %% of the box before (%.2f x %.2f x "
-          "%.2f); new box %.0f %% of the way back (%.2f x %.2f x %.2f, %.1f %%)\n",
-          stage.name.c_str(), batch_index, surface[0], surface[1], surface[2],
-          100.0 * r.coverage_surface, 100.0 * r.coverage_current, from[0], from[1], from[2],
-          100.0 * r.kept, to[0], to[1], to[2], 100.0 * r.coverage);
-      std::fflush(stdout);
-    }
+    const Eigen::Vector3d from = bounds_.sizes(), surface = r.surface.sizes(), to = r.box.sizes();
+    c->Say(SolveMessageKind::kEvent, stage, batch_index,
+           StrPrintf("bounds refresh at batch %d held: the surface's box (%.2f x %.2f x %.2f) "
+                     "meets %.1f %% of the masks' object pixels against %.1f %% of the box "
+                     "before (%.2f x %.2f x %.2f); new box %.0f %% of the way back (%.2f x %.2f "
+                     "x %.2f, %.1f %%)",
+                     batch_index, surface[0], surface[1], surface[2], 100.0 * r.coverage_surface,
+                     100.0 * r.coverage_current, from[0], from[1], from[2], 100.0 * r.kept, to[0],
+                     to[1], to[2], 100.0 * r.coverage));
   }
   bounds_ = r.box;
 }
 
-void Solver::ReinitializeBones(bool keep_motion, BoneSites sites, SolverState* state) {
+void Solver::ReinitializeBones(int batch_index, const StageConfig& stage, RunContext* c) {
+  const bool keep_motion = stage.schedule.bone_reinit_keep_motion;
+  const BoneSites sites = stage.schedule.bone_sites;
+  SolverState* state = c->state;
   Model& model = *model_;
   const int B = model.num_bones();
   ExtractOptions options;
@@ -613,7 +608,9 @@ void Solver::ReinitializeBones(bool keep_motion, BoneSites sites, SolverState* s
     } catch (const InputError& e) {
       // A coarse surface can be too rough for a skeleton: the surface's
       // k-means still places the bones.
-      std::printf("bone re-initialisation: %s; bone centres from the surface instead\n", e.what());
+      c->Say(
+          SolveMessageKind::kWarning, stage, batch_index,
+          StrPrintf("bone re-initialisation: %s; bone centres from the surface instead", e.what()));
     }
   }
   if (centres.empty()) centres = BoneCentresFromSurface(mesh, B, seed);
@@ -638,11 +635,10 @@ void Solver::ReinitializeBones(bool keep_motion, BoneSites sites, SolverState* s
     std::fill(model.delta_skinning_params() + mlp.WeightOffset(last),
               model.delta_skinning_params() + mlp.NumParameters(), 0.0);
   }
-  for (auto it = state->adam.begin(); it != state->adam.end();) {
-    const bool bone = it->first == "bones" || it->first.find("bones_t") != std::string::npos ||
-                      it->first == "delta_skinning";
-    it = bone ? state->adam.erase(it) : std::next(it);
-  }
+  // The Adam moments of the bones, their transforms (and bases) and
+  // MLP_Delta's weights (not the rest pose code's, which keeps its value).
+  state->DropAdamMoments({ParameterGroup::kBones, ParameterGroup::kBonesT});
+  state->adam.erase("delta_skinning");
 }
 
 }  // namespace banmo

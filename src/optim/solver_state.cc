@@ -3,7 +3,9 @@
 #include <cstring>
 #include <sstream>
 
+#include "banmo/model/model.h"
 #include "banmo/util/error.h"
+#include "banmo/util/logging.h"
 
 namespace banmo {
 namespace {
@@ -102,9 +104,41 @@ void SolverState::Deserialize(const std::string& in) {
   bounds = Eigen::AlignedBox3d(lo, hi);
 }
 
-void SolverState::DropAdamMoments(const std::string& part) {
+namespace {
+
+constexpr const char kBasisSuffix[] = "_basis";
+constexpr size_t kBasisSuffixLength = sizeof(kBasisSuffix) - 1;
+
+bool IsBasisMomentsName(const std::string& name) {
+  return name.size() > kBasisSuffixLength &&
+         name.compare(name.size() - kBasisSuffixLength, kBasisSuffixLength, kBasisSuffix) == 0;
+}
+
+}  // namespace
+
+std::string BasisMomentsName(int video, ParameterGroup group) {
+  CHECK(group == ParameterGroup::kBonesT || group == ParameterGroup::kRoot);
+  return "video" + std::to_string(video) +
+         (group == ParameterGroup::kBonesT ? "/bones_t" : "/root_delta") + kBasisSuffix;
+}
+
+std::optional<ParameterGroup> AdamMomentsGroup(const std::string& name) {
+  if (IsBasisMomentsName(name)) {
+    return Model::BlockGroup(name.substr(0, name.size() - kBasisSuffixLength));
+  }
+  return Model::BlockGroup(name);
+}
+
+void SolverState::DropAdamMoments(ParameterGroupSet groups) {
   for (auto m = adam.begin(); m != adam.end();) {
-    m = m->first.find(part) != std::string::npos ? adam.erase(m) : std::next(m);
+    const std::optional<ParameterGroup> group = AdamMomentsGroup(m->first);
+    m = group && groups.Contains(*group) ? adam.erase(m) : std::next(m);
+  }
+}
+
+void SolverState::DropAdamBasisMoments() {
+  for (auto m = adam.begin(); m != adam.end();) {
+    m = IsBasisMomentsName(m->first) ? adam.erase(m) : std::next(m);
   }
 }
 

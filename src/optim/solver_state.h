@@ -5,10 +5,12 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "banmo/model/parameter_group.h"
 #include "banmo/optim/ray_sampler.h"
 
 namespace banmo {
@@ -23,18 +25,32 @@ struct SolverState {
     std::vector<double> m, v;
     int64_t steps = 0;
   };
-  std::map<std::string, Moments> adam;  // by block name (Model::ForEachBlock)
+  // By block name (Model::ForEachBlock), and by BasisMomentsName for the
+  // temporal step bases.
+  std::map<std::string, Moments> adam;
   std::vector<RaySampler::CachedPixel> error_cache;
   Eigen::AlignedBox3d bounds;
 
-  // Forgets the Adam moments of every block whose name contains `part`
-  // (blocks whose parameters jumped: a solve or a registration moved them).
-  void DropAdamMoments(const std::string& part);
+  // Forgets the Adam moments of every block of these groups and of their
+  // temporal bases (blocks whose parameters jumped: a solve or a
+  // registration moved them, or their tangent space changed).
+  void DropAdamMoments(ParameterGroupSet groups);
+  // Forgets the moments of every temporal basis (the bones changed).
+  void DropAdamBasisMoments();
 
   // state.bin: "BANMOST1", then the fields above in order.
   std::string Serialize() const;
   // Throws InputError on a truncated or foreign file.
   void Deserialize(const std::string& in);
 };
+
+// The Adam moments' name of video v's temporal step basis of `group`
+// (kBonesT or kRoot; AdamConfig::bone_basis / root_basis), e.g.
+// "video3/bones_t_basis": its frames' block name with "_basis".
+std::string BasisMomentsName(int video, ParameterGroup group);
+
+// The group of an entry of SolverState::adam: its block's
+// (Model::BlockGroup) or its basis's; none for another name.
+std::optional<ParameterGroup> AdamMomentsGroup(const std::string& name);
 
 }  // namespace banmo

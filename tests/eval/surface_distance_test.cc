@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "banmo/eval/icp.h"
-#include "banmo/eval/nearest_neighbors.h"
 #include "banmo/eval/surface_sampling.h"
+#include "banmo/geometry/nearest_neighbors.h"
 #include "banmo/util/error.h"
 #include "test_shapes.h"
 

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -33,6 +35,47 @@ Model TinyModel(const ModelOptions& options) {
   camera.height = 12;
   camera.intrinsics = Eigen::Vector4d(20, 20, 8, 6);
   return Model(options, {2, 1}, {camera, camera});
+}
+
+// Model::BlockGroup: the group of every block ForEachBlock names is the one
+// its data has (the blocks by accessor, as optim/stage_problem.cc groups
+// them); root_init (data, not a parameter) has none.
+TEST(Model, BlockGroupOfEveryBlock) {
+  ModelOptions options = TinyOptions();
+  options.delta_skinning.enabled = true;
+  Model model = TinyModel(options);
+  using G = ParameterGroup;
+  std::map<const double*, G> group_of = {{model.sdf(), G::kSdf},
+                                         {model.color(), G::kColor},
+                                         {model.embedding(), G::kEmbedding},
+                                         {model.log_beta(), G::kLogBeta},
+                                         {model.bones(), G::kBones},
+                                         {model.delta_skinning_params(), G::kDeltaSkinning},
+                                         {model.rest_pose_code(), G::kDeltaSkinning}};
+  for (int v = 0; v < model.num_videos(); ++v) {
+    group_of[model.video(v).intrinsics.data()] = G::kIntrinsics;
+    group_of[model.video(v).appearance.data()] = G::kAppearance;
+    for (size_t t = 0; t < model.video(v).frames.size(); ++t) {
+      FrameParameters& f = model.frame(v, t);
+      group_of[f.root_delta.data()] = G::kRoot;
+      group_of[f.bones_t.data()] = G::kBonesT;
+      group_of[f.pose_code.data()] = G::kPoseCode;
+    }
+  }
+  int grouped = 0;
+  model.ForEachBlock([&](const std::string& name, double* data, int) {
+    const std::optional<G> group = Model::BlockGroup(name);
+    const auto expected = group_of.find(data);
+    if (expected == group_of.end()) {
+      EXPECT_FALSE(group.has_value()) << name;  // root_init
+      return;
+    }
+    ASSERT_TRUE(group.has_value()) << name;
+    EXPECT_EQ(*group, expected->second) << name;
+    ++grouped;
+  });
+  EXPECT_EQ(grouped, static_cast<int>(group_of.size()));
+  EXPECT_FALSE(Model::BlockGroup("video0/frame1/unknown").has_value());
 }
 
 TEST(Model, StartsAtIdentityTransformsWithBonesInsideTheSphere) {

@@ -599,6 +599,40 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
 // pose_solve.bones solves the bone transforms: a stage that holds the root
 // constant may then have pose solves, and a stage of pose solves alone
 // (every group constant) is not empty.
+// Each section checks itself (its Check() beside the struct) and names the
+// key path it is given.
+TEST(SolverConfig, SectionsCheckThemselvesUnderTheirKeyPath) {
+  const std::string source = "s.yaml";
+  const OptionChecker c(source);
+  auto message = [](const std::function<void()>& check) {
+    try {
+      check();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  AdamConfig adam;
+  EXPECT_EQ(message([&] { adam.Check(c, "x.adam"); }), "no error");
+  adam.beta2 = 1.0;
+  EXPECT_EQ(message([&] { adam.Check(c, "x.adam"); }).rfind("s.yaml: x.adam.beta2: ", 0), 0u);
+  PoseSolveConfig pose;
+  pose.at = {0.5, 1.0};
+  EXPECT_NE(message([&] { pose.Check(c, "y", 10); }).find("s.yaml: y.at[1]: "), std::string::npos);
+  BoneRegistrationConfig reg;
+  reg.after_last_batch.mask_weight = -1.0;
+  EXPECT_EQ(message([&] { reg.Check(c, "z"); }).rfind("s.yaml: z.after_last_batch.mask_weight", 0),
+            0u);
+  // A rule across sections is the stage's: registration against constant.
+  StageConfig stage;
+  stage.bone_registration.at = {0.5};
+  stage.constant = {ParameterGroup::kBonesT};
+  EXPECT_EQ(message([&] {
+              stage.Check(c, "stages[3]");
+            }).rfind("s.yaml: stages[3].bone_registration.at: a bone registration moves", 0),
+            0u);
+}
+
 TEST(SolverConfig, BonePoseSolvesMayHoldTheRootOrEverything) {
   SolverConfig config;
   config.stages.resize(2);

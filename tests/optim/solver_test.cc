@@ -14,6 +14,7 @@
 #include "banmo/deform/bone_joints.h"
 #include "banmo/extract/extract.h"
 #include "banmo/optim/checkpoint.h"
+#include "banmo/optim/retarget.h"
 #include "banmo/util/error.h"
 #include "tiny_solver_scene.h"
 
@@ -496,6 +497,42 @@ TEST(Solver, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   ExpectResumeEqualsStraight(config, {6}, "banmo_resume_test");  // stops inside the second stage
 }
 
+// The solver's messages go to SolveOptions::reporter: the stage's start and
+// end, a progress line every log_every batches and at the last, the
+// schedules' events; with quiet, none of these.
+TEST(Solver, ReportsThroughTheReporter) {
+  const Dataset& data = TinyDataset();
+  SolverConfig config = TinyConfig(StepRule::kAdam, 20);
+  config.stages[0].log_every = 10;
+  config.stages[0].schedule.neus_from = 0.5;
+  Solver solver(data, config, MakeModelForDataset(data, config.model));
+  RecordingReporter reporter;
+  SolveOptions options;
+  options.reporter = &reporter;
+  solver.Run(options);
+  std::vector<std::pair<SolveMessageKind, int>> said;
+  for (const SolveMessage& m : reporter.messages) {
+    EXPECT_EQ(m.stage, config.stages[0].name);
+    EXPECT_EQ(m.text.find('\n'), std::string::npos) << m.text;
+    said.emplace_back(m.kind, m.batch);
+  }
+  using K = SolveMessageKind;
+  const std::vector<std::pair<SolveMessageKind, int>> expected = {{K::kStage, 0},  {K::kBatch, 1},
+                                                                  {K::kEvent, 10}, {K::kBatch, 11},
+                                                                  {K::kBatch, 20}, {K::kStage, 20}};
+  EXPECT_EQ(said, expected);
+  EXPECT_EQ(reporter.messages[2].text, "density: NeuS from batch 10 on");
+  EXPECT_EQ(reporter.messages[1].text.rfind("    1/20 ", 0), 0u) << reporter.messages[1].text;
+  EXPECT_NE(reporter.messages[1].text.find(" | total="), std::string::npos);
+
+  RecordingReporter quiet;
+  options.reporter = &quiet;
+  options.quiet = true;
+  Solver again(data, config, MakeModelForDataset(data, config.model));
+  again.Run(options);
+  EXPECT_TRUE(quiet.messages.empty());
+}
+
 TEST(Solver, RetargetingFitsPosesAndKeepsSharedParameters) {
   const Dataset& data = TinyDataset();
   const SolverConfig config = TinyConfig(StepRule::kAdam, 10);
@@ -506,13 +543,10 @@ TEST(Solver, RetargetingFitsPosesAndKeepsSharedParameters) {
 
   const Dataset& other = TinyDataset(7);
   std::unique_ptr<Model> model = MakeModelForDataset(other, config.model);
-  CopySharedParameters(trained.model(), model.get(), "trained");
+  ApplyRetarget(trained.model(), "trained", model.get(), &options);  // optim/retarget.h
   const std::vector<double> sdf(model->sdf(), model->sdf() + model->sdf_size());
   const Pose root_before = model->frame(0, 0).root_delta;
   Solver retarget(other, config, std::move(model));
-  options.extra_constant = {ParameterGroup::kSdf, ParameterGroup::kColor,
-                            ParameterGroup::kEmbedding, ParameterGroup::kLogBeta,
-                            ParameterGroup::kBones};
   const SolveResult r = retarget.Run(options);
   EXPECT_TRUE(r.stages[0].finite);
   EXPECT_EQ(0, std::memcmp(sdf.data(), retarget.model().sdf(), sizeof(double) * sdf.size()));

@@ -7,8 +7,8 @@
 #include <Eigen/Core>
 #include <string>
 
-#include "banmo/eval/nearest_neighbors.h"
 #include "banmo/eval/surface_distance.h"
+#include "banmo/geometry/nearest_neighbors.h"
 
 namespace banmo {
 

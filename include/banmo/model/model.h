@@ -41,6 +41,7 @@
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/se3.h"
 #include "banmo/model/auto_size_options.h"
+#include "banmo/model/parameter_group.h"
 #include "banmo/model/root_registration_options.h"
 #include "banmo/model/root_smoothing_options.h"
 #include "banmo/volume/density_model.h"
@@ -67,11 +68,11 @@ struct ModelOptions {
   bool recentre = true;
   AutoSizeOptions auto_size;  // automatic growth of B and the MLP widths
   // Temporal smoothing of the dataset's rough root poses before the model is
-  // made from them (`banmo solve`; optim/root_init_smoothing.h).
+  // made from them (`banmo solve`; registration/root_init_smoothing.h).
   RootSmoothingOptions root_init_smoothing;
   // Registration of the frames from their pixel features when the dataset
   // has no root poses (`banmo solve`, before the smoothing;
-  // optim/root_init_registration.h).
+  // registration/root_init_registration.h).
   RootRegistrationOptions root_init_registration;
 
   // Throws InputError naming the field on a violated constraint.
@@ -187,6 +188,11 @@ class Model {
   // The same blocks, read only.
   void ForEachBlock(
       const std::function<void(const std::string& name, const double* data, int size)>& fn) const;
+  // The parameter group of the block ForEachBlock names `name` (its last
+  // path component: "video3/frame12/root_delta" is kRoot; delta_skinning
+  // and rest_pose_code are kDeltaSkinning); none for root_init (data, not
+  // a parameter) or a name no block has.
+  static std::optional<ParameterGroup> BlockGroup(const std::string& name);
 
   // Size changes (automatic model sizing, optim/auto_size.h). Both move
   // the blocks they touch (any ceres::Problem holding them must drop them

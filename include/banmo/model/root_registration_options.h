@@ -1,6 +1,6 @@
 // Options of the registration of root poses from pixel features (config key
 // model.root_init_registration; the algorithm is in
-// optim/root_init_registration.h, docs/solver.md "Videos without poses").
+// registration/root_init_registration.h, docs/solver.md "Videos without poses").
 #pragma once
 
 namespace banmo {

@@ -1,5 +1,5 @@
 // Options of the temporal smoothing of rough initial root poses (config key
-// model.root_init_smoothing; the algorithm is in optim/root_init_smoothing.h,
+// model.root_init_smoothing; the algorithm is in registration/root_init_smoothing.h,
 // docs/solver.md "Smoothing rough initial poses").
 #pragma once
 

@@ -15,7 +15,9 @@
 #include "banmo/losses/ray.h"
 #include "banmo/model/model.h"
 #include "banmo/model/parameter_group.h"
+#include "banmo/registration/bone_registration_config.h"
 #include "banmo/util/enum_names.h"
+#include "banmo/util/option_check.h"
 
 namespace banmo {
 
@@ -26,7 +28,6 @@ enum class LinearSolverType { kCgnr, kIterativeSchur };
 enum class LrSchedule { kOneCycle, kConstant };
 enum class RobustLossType { kNone, kHuber, kCauchy, kSoftL1, kArctan, kTolerant };
 enum class BoneSites { kSurface, kSkeleton };
-enum class RegistrationStart { kPrevious, kOwn, kLowerCost };
 
 template <>
 struct EnumNames<StepRule> {
@@ -56,13 +57,6 @@ struct EnumNames<BoneSites> {
   static constexpr std::pair<BoneSites, const char*> kNames[] = {
       {BoneSites::kSurface, "surface"}, {BoneSites::kSkeleton, "skeleton"}};
 };
-template <>
-struct EnumNames<RegistrationStart> {
-  static constexpr std::pair<RegistrationStart, const char*> kNames[] = {
-      {RegistrationStart::kPrevious, "previous"},
-      {RegistrationStart::kOwn, "own"},
-      {RegistrationStart::kLowerCost, "lower_cost"}};
-};
 
 // Robust loss applied to one loss term's residual block (Ceres LossFunction).
 struct RobustLossConfig {
@@ -74,6 +68,11 @@ struct RobustLossConfig {
 struct LossConfig {
   double weight = 0.0;
   RobustLossConfig robust;
+
+  // Each Check(c, key) below checks the struct's own fields, `key` its key
+  // path (e.g. "stages[1].adam"); InputError naming the file and the key
+  // (util/option_check.h).
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 // Every loss term's weight and robust loss, indexed by LossTerm; the YAML
@@ -90,6 +89,7 @@ struct LossesConfig {
   const LossConfig& operator[](LossTerm term) const { return terms.at(static_cast<size_t>(term)); }
   // The per-ray terms' weights.
   RayLossWeights RayWeights() const;
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct AdamConfig {
@@ -114,6 +114,8 @@ struct AdamConfig {
   // every frame of the videos it samples. 0: each frame's block on its own.
   int bone_basis = 0;
   int root_basis = 0;
+
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct LmConfig {
@@ -122,6 +124,8 @@ struct LmConfig {
   double max_radius = 1e6;      // cap of the radius carried between batches
   LinearSolverType linear_solver = LinearSolverType::kCgnr;
   int iterations_per_batch = 1;  // LM iterations on one minibatch
+
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct SamplingConfig {
@@ -164,6 +168,8 @@ struct SamplingConfig {
   // unbiased estimate of the mean over all pixels instead of favouring
   // the object pixels the sampler draws more often.
   bool unbiased_silhouette = false;
+
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 struct ScheduleConfig {
@@ -204,6 +210,9 @@ struct ScheduleConfig {
   // silhouette then fits the zero level set, without VolSDF's shell
   // (>= 1: never).
   double neus_from = 1.0;
+
+  // `batches`: the stage's (a fraction must fall on one of its batches).
+  void Check(const OptionChecker& c, const std::string& key, int batches) const;
 };
 
 // Per-frame root-pose solves (docs/solver.md, "Pose solves"): at the given
@@ -227,51 +236,8 @@ struct PoseSolveConfig {
   // or alone when the stage holds the root constant); in an `alternate`
   // stage the bone transforms then move only in the solves.
   bool bones = false;
-};
 
-// The weights of a registration after a stage's last batch (`at` 1.0), where
-// they differ from the stage's other registrations: there the shape is
-// finished and no later batch moves the fit, so the exact masks may count
-// more than the matches (problems/default.yaml). Unset: the registration's
-// own weight.
-struct BoneRegistrationFinalWeights {
-  std::optional<double> match_weight;
-  std::optional<double> mask_weight;
-  std::optional<double> coverage_weight;
-};
-
-// Bone motion registration on feature matches (optim/bone_registration.h;
-// docs/solver.md, "Bone registration"): at the given fractions of the stage,
-// each frame's bone transforms J_b^t fitted by Levenberg-Marquardt to
-// matches between its object pixels' features and a mean-feature embedding
-// of the current canonical surface, frame after frame along each video.
-struct BoneRegistrationConfig {
-  std::vector<double> at;           // fractions of the stage (increasing, in [0, 1]; empty = never)
-  int resolution = 128;             // marching-cubes grid of the canonical surface
-  int vertices = 3000;              // surface vertices fitted (a random subset)
-  int match_pixels = 1000;          // object pixels matched per frame
-  double match_weight = 10.0;       // the matches' weight (their mean squared px)
-  double huber_px = 2.0;            // Huber scale of a match residual (px)
-  double joint_weight = 1.0;        // bones sharing skinning weight move their shared points alike
-  double joint_min_weight = 0.15;   // a point joins bones b, c when both weights exceed this
-  int joint_points = 40;            // shared points per bone pair at most
-  double smooth_weight = 0.01;      // each bone's pull to the previous frame's fit
-  double rest_weight = 0.01;        // each bone's pull to the rest pose (the identity)
-  double visible_tolerance = 0.05;  // z-buffer tolerance (model units)
-  int iterations = 20;              // LM iterations per frame
-  double mask_weight = 0.0;         // fitted vertices pulled into the frame's mask (0 = off)
-  int mask_points = 1000;           // fitted vertices of the mask term, spread over the proxy
-  double coverage_weight = 0.0;     // object pixels pulled to the nearest fitted vertex (0 = off)
-  int coverage_pixels = 500;        // object pixels of the coverage term per frame
-  int coverage_rounds = 10;         // nearest-vertex ties made this many times (LM solves)
-  // Where a frame's fit starts (a video's first frame: its own transforms):
-  // the previous frame's fit, the frame's own current transforms, or
-  // whichever of the two the terms but the coverage ties cost less.
-  RegistrationStart start = RegistrationStart::kPrevious;
-  BoneRegistrationFinalWeights after_last_batch;  // a registration at `at` 1.0
-
-  // This config with after_last_batch's weights in place of its own.
-  BoneRegistrationConfig AfterLastBatch() const;
+  void Check(const OptionChecker& c, const std::string& key, int batches) const;
 };
 
 // Parameter groups held constant (ceres SetParameterBlockConstant):
@@ -305,6 +271,10 @@ struct StageConfig {
   bool bone_steps_articulated = false;
   int checkpoint_every = 0;  // batches between checkpoints (0 = end of stage only)
   int log_every = 10;        // batches between progress lines
+
+  // Its sections' Check()s, then the rules that span several of them
+  // (constant groups against pose solves and registrations, ...).
+  void Check(const OptionChecker& c, const std::string& key) const;
 };
 
 // The stage's sampling at `fraction` of it: sampling.unbiased_silhouette is

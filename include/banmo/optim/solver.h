@@ -38,6 +38,7 @@
 #include "banmo/optim/auto_size.h"
 #include "banmo/optim/config.h"
 #include "banmo/optim/pose_solve_report.h"
+#include "banmo/optim/solve_reporter.h"
 
 namespace banmo {
 
@@ -69,7 +70,10 @@ struct BatchProgress {
 struct SolveOptions {
   std::string out_dir;  // checkpoints go to out_dir/checkpoint (empty: no checkpoints)
   bool resume = false;  // continue from out_dir/checkpoint
-  bool quiet = false;   // no progress lines
+  bool quiet = false;   // no progress lines or events (warnings are still reported)
+  // Where progress lines, events and warnings go (optim/solve_reporter.h);
+  // null: a PrintingReporter (stdout, warnings through glog). Not owned.
+  SolveReporter* reporter = nullptr;
   // Parameter groups held constant in every stage on top of the stage's own
   // (retargeting freezes the shared ones).
   std::vector<ParameterGroup> extra_constant;
@@ -150,8 +154,10 @@ class Solver {
   // importance-resampled depths when the stage asks for them.
   std::vector<Ray> SampleRays(const StageConfig& stage, double fraction, const RayBatch& batch,
                               RaySampler* sampler, std::mt19937* rng);
+  // The progress line of a batch (every stage.log_every batches and the
+  // stage's last) to the reporter.
   void ReportBatch(int batch_index, const StageRun& run, const TermLosses& losses,
-                   const RunContext& c) const;
+                   RunContext* c) const;
   void NameBlocks(RunContext* c);
   // Writes out_dir/checkpoint (nothing without out_dir).
   void Save(int stage, int batch_index, RunContext* c);
@@ -169,8 +175,9 @@ class Solver {
   // extraction), bone transforms reset to the identity (keep_motion: set to
   // carry each frame's old motion, TransferBoneMotion), MLP_Delta's output
   // layer reset to zero (its logits belonged to the old bones), their Adam
-  // moments cleared.
-  void ReinitializeBones(bool keep_motion, BoneSites sites, SolverState* state);
+  // moments cleared (the stage's schedule.bone_reinit_keep_motion and
+  // bone_sites).
+  void ReinitializeBones(int batch_index, const StageConfig& stage, RunContext* c);
 
   const Dataset& dataset_;
   const SolverConfig& config_;

@@ -65,7 +65,7 @@
 #include "banmo/geometry/se3.h"
 #include "banmo/io/dataset.h"
 #include "banmo/model/model.h"
-#include "banmo/optim/config.h"
+#include "banmo/registration/bone_registration_config.h"
 
 namespace ceres {
 class CostFunction;
@@ -205,12 +205,24 @@ struct FrameSilhouette {
 std::vector<Eigen::Vector2d> SampleObjectPixels(const cv::Mat& mask, int count, std::uint32_t seed);
 
 // Step 4 for one frame: fits bones_t (kPoseSize B, in and out) from its
-// value; `previous` is the previous frame's fit (null: the identity), the
-// reference of the smooth term; `silhouette` the frame's silhouette data
-// (null: no mask or coverage term). With `alternative_start` (kPoseSize B)
-// the fit starts from whichever of bones_t's value and alternative_start
-// the terms but the coverage ties (which are made from the start) cost
-// less; bones_t's value wins a tie.
+// value.
+struct FrameRegistrationInputs {
+  const RegistrationProxy* proxy = nullptr;
+  const FrameMatches* matches = nullptr;
+  int num_bones = 0;                       // B > 0
+  const double* bones = nullptr;           // the rest bones (kBoneSize B)
+  Pose camera_from_root = PoseIdentity();  // the frame's root pose G^t
+  Eigen::Vector4d intrinsics = Eigen::Vector4d::Zero();
+  // The previous frame's fit (null: the identity), the reference of the
+  // smooth term.
+  const double* previous = nullptr;
+  // The frame's silhouette data (null: no mask or coverage term).
+  const FrameSilhouette* silhouette = nullptr;
+  // With alternative_start (kPoseSize B) the fit starts from whichever of
+  // bones_t's value and alternative_start the terms but the coverage ties
+  // (which are made from the start) cost less; bones_t's value wins a tie.
+  const double* alternative_start = nullptr;
+};
 struct FrameRegistration {
   double initial_cost = 0.0;
   double final_cost = 0.0;
@@ -219,13 +231,8 @@ struct FrameRegistration {
   int iterations = 0;
   bool started_from_alternative = false;  // alternative_start was the cheaper
 };
-FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const FrameMatches& matches,
-                                     int num_bones, const double* bones,
-                                     const Pose& camera_from_root,
-                                     const Eigen::Vector4d& intrinsics, const double* previous,
-                                     const BoneRegistrationConfig& config, double* bones_t,
-                                     const FrameSilhouette* silhouette = nullptr,
-                                     const double* alternative_start = nullptr);
+FrameRegistration RegisterFrameBones(const FrameRegistrationInputs& in,
+                                     const BoneRegistrationConfig& config, double* bones_t);
 
 struct BoneRegistrationReport {
   bool registered = false;

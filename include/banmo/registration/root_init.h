@@ -1,7 +1,7 @@
 // The initial root poses' preparation before a solve, shared by `banmo
 // solve` and the solver harness (banmo_trace), so both solve from the same
-// poses: model.root_init_registration (optim/root_init_registration.h),
-// then model.root_init_smoothing (optim/root_init_smoothing.h), each when
+// poses: model.root_init_registration (registration/root_init_registration.h),
+// then model.root_init_smoothing (registration/root_init_smoothing.h), each when
 // enabled (docs/solver.md, "Videos without poses", "Smoothing rough
 // initial poses").
 #pragma once

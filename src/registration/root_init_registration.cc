@@ -1,4 +1,4 @@
-#include "banmo/optim/root_init_registration.h"
+#include "banmo/registration/root_init_registration.h"
 
 #include <ceres/ceres.h>
 
@@ -11,7 +11,7 @@
 #include "banmo/geometry/nearest_rotation.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/geometry/se3.h"
-#include "banmo/optim/root_init_smoothing.h"
+#include "banmo/registration/root_init_smoothing.h"
 #include "banmo/util/median.h"
 #include "banmo/util/parallel.h"
 
@@ -321,6 +321,166 @@ Eigen::Matrix3d ChordalMedian(const std::vector<Eigen::Matrix3d>& m) {
   return g;
 }
 
+// The usable (not skipped) frames; false with result->reason when a frame
+// has no features or fewer than 2 are usable.
+bool UsableFrames(const Dataset& dataset, std::vector<FrameRef>* frames, RootRegistration* result) {
+  for (int v = 0; v < static_cast<int>(dataset.videos.size()); ++v) {
+    const Video& video = dataset.videos[v];
+    for (int t = 0; t < static_cast<int>(video.frames.size()); ++t) {
+      const Frame& f = video.frames[t];
+      if (f.skip) continue;
+      if (f.features.empty()) {
+        result->reason = "video " + video.name + " frame " + std::to_string(t) + " has no features";
+        return false;
+      }
+      frames->push_back({v, t});
+    }
+  }
+  if (frames->size() < 2) {
+    result->reason = "fewer than 2 usable frames";
+    return false;
+  }
+  return true;
+}
+
+// Every usable frame's observations of the reference features.
+struct Observations {
+  std::vector<Observation> obs;
+  std::vector<Eigen::Vector2d> focal;                // each frame's focal lengths
+  std::vector<std::vector<int>> by_frame, by_point;  // indices into obs
+  int references = 0;
+};
+
+// References: the farthest points of a random subset (drawn with *rng) of
+// all frames' object features; each frame's features matched to them.
+Observations ObserveReferences(const RootRegistrationOptions& options, const Dataset& dataset,
+                               const std::vector<FrameRef>& frames, std::mt19937_64* rng) {
+  const int nf = static_cast<int>(frames.size());
+  std::vector<Eigen::MatrixXf> features(nf);
+  std::vector<Eigen::Matrix2Xd> pixels(nf);
+  ParallelFor(nf, [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      ObjectFeatures(dataset.videos[frames[i].video].frames[frames[i].frame], &features[i],
+                     &pixels[i]);
+    }
+  });
+  std::vector<std::pair<int, int>> all;
+  for (int i = 0; i < nf; ++i) {
+    for (int k = 0; k < features[i].cols(); ++k) all.push_back({i, k});
+  }
+  if (static_cast<int>(all.size()) > kReferenceSample) {
+    for (int k = 0; k < kReferenceSample; ++k) {
+      std::uniform_int_distribution<size_t> pick(k, all.size() - 1);
+      std::swap(all[k], all[pick(*rng)]);
+    }
+    all.resize(kReferenceSample);
+  }
+  Eigen::MatrixXf sample(features[0].rows(), static_cast<int>(all.size()));
+  for (size_t k = 0; k < all.size(); ++k) sample.col(k) = features[all[k].first].col(all[k].second);
+  const Eigen::MatrixXf refs = FarthestPoints(sample, options.references);
+  Observations out;
+  const int np = static_cast<int>(refs.cols());
+  out.references = np;
+
+  std::vector<std::vector<Observation>> per_frame(nf);
+  out.focal.resize(nf);
+  ParallelFor(nf, [&](int begin, int end) {
+    for (int i = begin; i < end; ++i) {
+      const Eigen::Vector4d& k = dataset.videos[frames[i].video].camera.intrinsics;
+      out.focal[i] = k.head<2>();
+      MatchFrame(refs, features[i], pixels[i], k, i, &per_frame[i]);
+    }
+  });
+  for (const auto& o : per_frame) out.obs.insert(out.obs.end(), o.begin(), o.end());
+  out.by_frame.resize(nf);
+  out.by_point.resize(np);
+  for (int i = 0; i < static_cast<int>(out.obs.size()); ++i) {
+    out.by_frame[out.obs[i].frame].push_back(i);
+    out.by_point[out.obs[i].point].push_back(i);
+  }
+  return out;
+}
+
+// Each video's registered track in frame order (camera_from_registration;
+// frames without a registration of their own take the nearest one's) beside
+// its initial track.
+struct VideoTracks {
+  std::vector<std::vector<int>> source;  // the registered frame (index into frames) of each
+  std::vector<std::vector<Pose>> registered, initial;
+};
+
+VideoTracks MakeVideoTracks(const Dataset& dataset, const std::vector<FrameRef>& frames,
+                            const std::vector<std::vector<int>>& registered,
+                            const std::vector<Pose>& poses) {
+  const int nv = static_cast<int>(dataset.videos.size());
+  VideoTracks out;
+  out.source.resize(nv);
+  out.registered.resize(nv);
+  out.initial.resize(nv);
+  for (int v = 0; v < nv; ++v) {
+    const Video& video = dataset.videos[v];
+    for (int t = 0; t < static_cast<int>(video.frames.size()); ++t) {
+      int nearest = registered[v].front();
+      for (int i : registered[v]) {
+        if (std::abs(frames[i].frame - t) < std::abs(frames[nearest].frame - t)) nearest = i;
+      }
+      out.source[v].push_back(nearest);
+      out.registered[v].push_back(poses[nearest]);
+      out.initial[v].push_back(video.frames[t].root_pose_init);
+    }
+  }
+  return out;
+}
+
+// Which videos take the registration (result->videos): all when the
+// initial poses carry no rotation or `always`; otherwise those whose initial
+// track is noisier than the registered one by kNoiseRatio, unless the
+// registration is ambiguous (its depth reversal fits almost as well).
+// True when some video keeps its initial poses.
+bool ChooseVideos(const RootRegistrationOptions& options, const Dataset& dataset,
+                  const VideoTracks& tracks, RootRegistration* result) {
+  const bool carries = RootPosesCarryRotation(dataset);
+  result->ambiguous = result->cost > kAmbiguousCostRatio * result->mirror_cost;
+  const int nv = static_cast<int>(dataset.videos.size());
+  result->videos.resize(nv);
+  bool any_kept = false;
+  for (int v = 0; v < nv; ++v) {
+    VideoRegistration& c = result->videos[v];
+    c.initial_noise_deg = RootTrackNoiseDeg(tracks.initial[v]);
+    c.registered_noise_deg = RootTrackNoiseDeg(tracks.registered[v]);
+    c.replaced = options.always || !carries ||
+                 (!result->ambiguous && c.initial_noise_deg > kNoiseRatio * c.registered_noise_deg);
+    any_kept = any_kept || !c.replaced;
+  }
+  return any_kept;
+}
+
+// The gauge of the registered tracks: the rotation onto the initial poses
+// (those of the videos kept if any: they are the trusted ones) and the scale
+// to their median depth. False when no frame of those videos has a
+// registration of its own.
+bool RegistrationGauge(const std::vector<FrameRef>& frames, const VideoTracks& tracks,
+                       const RootRegistration& result, bool any_kept, Eigen::Matrix3d* gauge,
+                       double* scale) {
+  std::vector<Eigen::Matrix3d> offsets;
+  std::vector<double> depth_init, depth_reg;
+  for (size_t v = 0; v < tracks.registered.size(); ++v) {
+    if (any_kept && result.videos[v].replaced) continue;
+    for (size_t t = 0; t < tracks.registered[v].size(); ++t) {
+      if (frames[tracks.source[v][t]].frame != static_cast<int>(t)) continue;  // not its own
+      offsets.push_back(PoseRotation(tracks.registered[v][t]).transpose() *
+                        PoseRotation(tracks.initial[v][t]));
+      depth_init.push_back(tracks.initial[v][t][kPoseT + 2]);
+      depth_reg.push_back(tracks.registered[v][t][kPoseT + 2]);
+    }
+  }
+  if (offsets.empty()) return false;
+  *gauge = ChordalMedian(offsets);
+  const double di = Median(std::move(depth_init)), dr = Median(std::move(depth_reg));
+  *scale = di > 0 && dr > 0 ? di / dr : 1.0;
+  return true;
+}
+
 }  // namespace
 
 bool RootPosesCarryRotation(const Dataset& dataset) {
@@ -345,71 +505,16 @@ bool RootPosesCarryRotation(const Dataset& dataset) {
 RootRegistration RegisterRootPoseInit(const RootRegistrationOptions& options, Dataset* dataset) {
   RootRegistration result;
   std::vector<FrameRef> frames;
-  for (int v = 0; v < static_cast<int>(dataset->videos.size()); ++v) {
-    const Video& video = dataset->videos[v];
-    for (int t = 0; t < static_cast<int>(video.frames.size()); ++t) {
-      const Frame& f = video.frames[t];
-      if (f.skip) continue;
-      if (f.features.empty()) {
-        result.reason = "video " + video.name + " frame " + std::to_string(t) + " has no features";
-        return result;
-      }
-      frames.push_back({v, t});
-    }
-  }
-  if (frames.size() < 2) {
-    result.reason = "fewer than 2 usable frames";
-    return result;
-  }
+  if (!UsableFrames(*dataset, &frames, &result)) return result;
   const int nf = static_cast<int>(frames.size());
-  std::vector<Eigen::MatrixXf> features(nf);
-  std::vector<Eigen::Matrix2Xd> pixels(nf);
-  ParallelFor(nf, [&](int begin, int end) {
-    for (int i = begin; i < end; ++i) {
-      ObjectFeatures(dataset->videos[frames[i].video].frames[frames[i].frame], &features[i],
-                     &pixels[i]);
-    }
-  });
-  // References: farthest points of a fixed random subset of all features.
-  std::vector<std::pair<int, int>> all;
-  for (int i = 0; i < nf; ++i) {
-    for (int k = 0; k < features[i].cols(); ++k) all.push_back({i, k});
-  }
   std::mt19937_64 rng(kSeed);
-  if (static_cast<int>(all.size()) > kReferenceSample) {
-    for (int k = 0; k < kReferenceSample; ++k) {
-      std::uniform_int_distribution<size_t> pick(k, all.size() - 1);
-      std::swap(all[k], all[pick(rng)]);
-    }
-    all.resize(kReferenceSample);
-  }
-  Eigen::MatrixXf sample(features[0].rows(), static_cast<int>(all.size()));
-  for (size_t k = 0; k < all.size(); ++k) sample.col(k) = features[all[k].first].col(all[k].second);
-  const Eigen::MatrixXf refs = FarthestPoints(sample, options.references);
-  const int np = static_cast<int>(refs.cols());
-  result.references = np;
-
-  std::vector<std::vector<Observation>> per_frame(nf);
-  std::vector<Eigen::Vector2d> focal(nf);
-  ParallelFor(nf, [&](int begin, int end) {
-    for (int i = begin; i < end; ++i) {
-      const Eigen::Vector4d& k = dataset->videos[frames[i].video].camera.intrinsics;
-      focal[i] = k.head<2>();
-      MatchFrame(refs, features[i], pixels[i], k, i, &per_frame[i]);
-    }
-  });
-  std::vector<Observation> obs;
-  for (const auto& o : per_frame) obs.insert(obs.end(), o.begin(), o.end());
-  result.observations_per_frame = static_cast<double>(obs.size()) / nf;
-  std::vector<std::vector<int>> by_frame(nf), by_point(np);
-  for (int i = 0; i < static_cast<int>(obs.size()); ++i) {
-    by_frame[obs[i].frame].push_back(i);
-    by_point[obs[i].point].push_back(i);
-  }
+  const Observations o = ObserveReferences(options, *dataset, frames, &rng);
+  result.references = o.references;
+  result.observations_per_frame = static_cast<double>(o.obs.size()) / nf;
 
   Factorisation best;
   for (int start = 0; start < kAlsStarts; ++start) {
-    Factorisation f = Factorise(by_frame, by_point, obs, &rng);
+    Factorisation f = Factorise(o.by_frame, o.by_point, o.obs, &rng);
     if (f.rms < best.rms) best = std::move(f);
   }
   if (!std::isfinite(best.rms)) {
@@ -417,7 +522,7 @@ RootRegistration RegisterRootPoseInit(const RootRegistrationOptions& options, Da
     return result;
   }
   // The factorisation's error in pixels (the first frame's focal length).
-  result.affine_rms_px = best.rms * focal[0][0];
+  result.affine_rms_px = best.rms * o.focal[0][0];
 
   // The adjustment and its mirror image side by side (each Ceres solve on
   // one thread; the same results as one after the other).
@@ -425,7 +530,7 @@ RootRegistration RegisterRootPoseInit(const RootRegistrationOptions& options, Da
   Adjusted mirror;
   ParallelFor(2, [&](int begin, int end) {
     for (int i = begin; i < end; ++i) {
-      (i == 0 ? adjusted : mirror) = Adjust(best, i == 1, obs, focal);
+      (i == 0 ? adjusted : mirror) = Adjust(best, i == 1, o.obs, o.focal);
     }
   });
   if (mirror.cost < adjusted.cost) std::swap(adjusted, mirror);
@@ -446,69 +551,21 @@ RootRegistration RegisterRootPoseInit(const RootRegistrationOptions& options, Da
       return result;
     }
   }
-
-  // Each video's registered track in frame order (camera_from_registration;
-  // frames without a registration of their own take the nearest one's).
-  const int nv = static_cast<int>(dataset->videos.size());
-  std::vector<std::vector<int>> source(nv);
-  std::vector<std::vector<Pose>> tracks(nv), rough(nv);
-  for (int v = 0; v < nv; ++v) {
-    const Video& video = dataset->videos[v];
-    for (int t = 0; t < static_cast<int>(video.frames.size()); ++t) {
-      int nearest = registered[v].front();
-      for (int i : registered[v]) {
-        if (std::abs(frames[i].frame - t) < std::abs(frames[nearest].frame - t)) nearest = i;
-      }
-      source[v].push_back(nearest);
-      tracks[v].push_back(adjusted.poses[nearest]);
-      rough[v].push_back(video.frames[t].root_pose_init);
-    }
-  }
-  // Which videos take the registration: all when the initial poses carry no
-  // rotation or `always`; otherwise those whose initial track is noisier
-  // than the registered one by kNoiseRatio, unless the registration is
-  // ambiguous (its depth reversal fits almost as well).
-  const bool carries = RootPosesCarryRotation(*dataset);
-  result.ambiguous = result.cost > kAmbiguousCostRatio * result.mirror_cost;
-  result.videos.resize(nv);
-  bool any_kept = false;
-  for (int v = 0; v < nv; ++v) {
-    VideoRegistration& c = result.videos[v];
-    c.initial_noise_deg = RootTrackNoiseDeg(rough[v]);
-    c.registered_noise_deg = RootTrackNoiseDeg(tracks[v]);
-    c.replaced = options.always || !carries ||
-                 (!result.ambiguous && c.initial_noise_deg > kNoiseRatio * c.registered_noise_deg);
-    any_kept = any_kept || !c.replaced;
-  }
-
-  // Gauge: rotation onto the initial poses (those of the videos kept if
-  // any: they are the trusted ones), scale to their median depth.
-  std::vector<Eigen::Matrix3d> offsets;
-  std::vector<double> depth_init, depth_reg;
-  for (int v = 0; v < nv; ++v) {
-    if (any_kept && result.videos[v].replaced) continue;
-    for (size_t t = 0; t < tracks[v].size(); ++t) {
-      if (frames[source[v][t]].frame != static_cast<int>(t)) continue;  // not its own
-      offsets.push_back(PoseRotation(tracks[v][t]).transpose() * PoseRotation(rough[v][t]));
-      depth_init.push_back(rough[v][t][kPoseT + 2]);
-      depth_reg.push_back(tracks[v][t][kPoseT + 2]);
-    }
-  }
+  const VideoTracks tracks = MakeVideoTracks(*dataset, frames, registered, adjusted.poses);
+  const bool any_kept = ChooseVideos(options, *dataset, tracks, &result);
   for (int i = 0; i < nf; ++i) result.frames += best.frame_ok[i] ? 1 : 0;
-  if (offsets.empty()) {
+  Eigen::Matrix3d gauge;
+  double scale = 1.0;
+  if (!RegistrationGauge(frames, tracks, result, any_kept, &gauge, &scale)) {
     result.reason = "the videos kept have no registered frame to align the others to";
     return result;
   }
-  const Eigen::Matrix3d gauge = ChordalMedian(offsets);
-  const double di = Median(std::move(depth_init)), dr = Median(std::move(depth_reg));
-  const double scale = di > 0 && dr > 0 ? di / dr : 1.0;
-
-  for (int v = 0; v < nv; ++v) {
+  for (int v = 0; v < static_cast<int>(dataset->videos.size()); ++v) {
     if (!result.videos[v].replaced) continue;
     Video& video = dataset->videos[v];
     for (int t = 0; t < static_cast<int>(video.frames.size()); ++t) {
-      if (frames[source[v][t]].frame != t) ++result.filled;
-      const Pose& p = tracks[v][t];
+      if (frames[tracks.source[v][t]].frame != t) ++result.filled;
+      const Pose& p = tracks.registered[v][t];
       const Eigen::Quaterniond q(PoseRotation(p) * gauge);
       Pose& out = video.frames[t].root_pose_init;
       out << q.w(), q.x(), q.y(), q.z(), scale * p[kPoseT], scale * p[kPoseT + 1],

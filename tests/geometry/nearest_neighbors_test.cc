@@ -1,4 +1,4 @@
-#include "banmo/eval/nearest_neighbors.h"
+#include "banmo/geometry/nearest_neighbors.h"
 
 #include <gtest/gtest.h>
 

@@ -1,9 +1,9 @@
-// Bone motion registration on feature matches (optim/bone_registration.h):
+// Bone motion registration on feature matches (registration/bone_registration.h):
 // the residuals against direct computations, the z-buffer, the
 // mean-feature embedding and matches on a rendered point cloud, and the
 // per-frame fit recovering a known articulation from exact matches, and the
 // mask term (distance image, residual, a fit from the silhouette alone).
-#include "banmo/optim/bone_registration.h"
+#include "banmo/registration/bone_registration.h"
 
 #include <ceres/cost_function.h>
 #include <ceres/rotation.h>
@@ -19,6 +19,21 @@
 
 namespace banmo {
 namespace {
+
+// RegisterFrameBones' inputs without a previous frame, silhouette or
+// alternative start.
+FrameRegistrationInputs FrameInputs(const RegistrationProxy& proxy, const FrameMatches& matches,
+                                    int num_bones, const double* bones, const Pose& g,
+                                    const Eigen::Vector4d& k) {
+  FrameRegistrationInputs in;
+  in.proxy = &proxy;
+  in.matches = &matches;
+  in.num_bones = num_bones;
+  in.bones = bones;
+  in.camera_from_root = g;
+  in.intrinsics = k;
+  return in;
+}
 
 constexpr double kDeg = M_PI / 180.0;
 
@@ -422,8 +437,8 @@ TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
   config.joint_weight = 0.0;
   config.iterations = 50;
   std::vector<double> bones_t = IdentityBoneTransforms(B);
-  const FrameRegistration fit =
-      RegisterFrameBones(proxy, matches, B, bones.data(), g, k, nullptr, config, bones_t.data());
+  const FrameRegistration fit = RegisterFrameBones(
+      FrameInputs(proxy, matches, B, bones.data(), g, k), config, bones_t.data());
   EXPECT_GT(fit.median_match_px_before, 5.0);
   EXPECT_LT(fit.median_match_px_after, 0.01);
   EXPECT_LT(fit.final_cost, 1e-6 * fit.initial_cost);
@@ -436,8 +451,9 @@ TEST(BoneRegistration, FrameFitRecoversAKnownArticulationFromExactMatches) {
 
   // With priors and no matches the fit stays at the rest pose.
   std::vector<double> rest = IdentityBoneTransforms(B);
-  const FrameRegistration none = RegisterFrameBones(proxy, FrameMatches{}, B, bones.data(), g, k,
-                                                    nullptr, BoneRegistrationConfig{}, rest.data());
+  const FrameMatches no_matches;
+  const FrameRegistration none = RegisterFrameBones(
+      FrameInputs(proxy, no_matches, B, bones.data(), g, k), BoneRegistrationConfig{}, rest.data());
   EXPECT_EQ(none.final_cost, 0.0);
   for (int b = 0; b < B; ++b) {
     EXPECT_NEAR(rest[kPoseSize * b], 1.0, 1e-12);
@@ -459,9 +475,10 @@ TEST(BoneRegistration, FrameFitStartsFromTheCheaperOfTwoStarts) {
   const std::vector<double> rest = IdentityBoneTransforms(B);
   auto fit = [&](const std::vector<double>& own, const std::vector<double>* alternative) {
     std::vector<double> bones_t = own;
-    return RegisterFrameBones(scene.proxy, scene.matches, B, scene.bar.bones.data(), scene.g,
-                              scene.k, nullptr, config, bones_t.data(), nullptr,
-                              alternative != nullptr ? alternative->data() : nullptr);
+    FrameRegistrationInputs in =
+        FrameInputs(scene.proxy, scene.matches, B, scene.bar.bones.data(), scene.g, scene.k);
+    in.alternative_start = alternative != nullptr ? alternative->data() : nullptr;
+    return RegisterFrameBones(in, config, bones_t.data());
   };
   const FrameRegistration from_rest = fit(rest, nullptr);
   const FrameRegistration from_truth = fit(scene.truth, nullptr);
@@ -519,9 +536,11 @@ struct SilhouetteCase {
   FrameRegistration Fit(const BoneRegistrationConfig& config, const FrameSilhouette* silhouette,
                         double* turn, double* tip_px, std::vector<double>* fitted = nullptr) const {
     std::vector<double> bones_t = IdentityBoneTransforms(BarScene::B);
-    const FrameRegistration fit =
-        RegisterFrameBones(proxy, FrameMatches{}, BarScene::B, bar.bones.data(), g, k, nullptr,
-                           config, bones_t.data(), silhouette);
+    const FrameMatches no_matches;
+    FrameRegistrationInputs in =
+        FrameInputs(proxy, no_matches, BarScene::B, bar.bones.data(), g, k);
+    in.silhouette = silhouette;
+    const FrameRegistration fit = RegisterFrameBones(in, config, bones_t.data());
     *turn = RotationAngleBetween(bones_t.data() + kPoseSize, PoseIdentity().data());
     auto tip = [&](const double* pose) {
       const Eigen::Vector3d c =

@@ -1,6 +1,6 @@
 // Exact nearest neighbours in 3-D: a FLANN kd-tree (KDTreeSingleIndex, searched
 // with eps = 0, i.e. exact) and a brute-force reference. FLANN stays inside
-// src/eval/nearest_neighbors.cc.
+// src/geometry/nearest_neighbors.cc.
 #pragma once
 
 #include <Eigen/Core>

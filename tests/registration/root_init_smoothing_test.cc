@@ -1,4 +1,4 @@
-#include "banmo/optim/root_init_smoothing.h"
+#include "banmo/registration/root_init_smoothing.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "banmo/optim/root_init.h"
+#include "banmo/registration/root_init.h"
 
 namespace banmo {
 namespace {
@@ -164,7 +164,7 @@ TEST(RootInitSmoothing, EachVideoOfADatasetIsSmoothedOnItsOwn) {
   EXPECT_LT(MeanErrorDeg(smoothed, truth), 0.5 * MeanErrorDeg(noisy, truth));
 }
 
-// PrepareRootPoseInit (optim/root_init.h), what `banmo solve` and
+// PrepareRootPoseInit (registration/root_init.h), what `banmo solve` and
 // banmo_trace run before a solve: the same smoothing, a line per step with
 // the prefix, nothing printed without one, and nothing done when disabled.
 TEST(RootInitSmoothing, PrepareRootPoseInitSmoothsAsTheSolveDoes) {

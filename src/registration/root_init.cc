@@ -1,13 +1,13 @@
-#include "banmo/optim/root_init.h"
+#include "banmo/registration/root_init.h"
 
 #include <algorithm>
 #include <cstdarg>
 #include <cstdio>
 #include <optional>
 
-#include "banmo/optim/root_init_registration.h"
-#include "banmo/optim/root_init_smoothing.h"
-#include "banmo/optim/root_pose_error.h"
+#include "banmo/registration/root_init_registration.h"
+#include "banmo/registration/root_init_smoothing.h"
+#include "banmo/registration/root_pose_error.h"
 #include "banmo/util/timer.h"
 
 namespace banmo {

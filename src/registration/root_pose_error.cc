@@ -1,4 +1,4 @@
-#include "banmo/optim/root_pose_error.h"
+#include "banmo/registration/root_pose_error.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>

@@ -1,4 +1,4 @@
-#include "banmo/eval/nearest_neighbors.h"
+#include "banmo/geometry/nearest_neighbors.h"
 
 #include <flann/algorithms/dist.h>
 #include <flann/algorithms/kdtree_single_index.h>

@@ -1,11 +1,11 @@
-#include "banmo/optim/root_init_registration.h"
+#include "banmo/registration/root_init_registration.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <random>
 
-#include "banmo/optim/root_pose_error.h"
+#include "banmo/registration/root_pose_error.h"
 #include "banmo/synth/rig_library.h"
 #include "banmo/synth/scene.h"
 

@@ -1,4 +1,4 @@
-#include "banmo/optim/bone_registration.h"
+#include "banmo/registration/bone_registration.h"
 
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/cubic_interpolation.h>
@@ -19,9 +19,9 @@
 #include <random>
 
 #include "banmo/deform/bones.h"
-#include "banmo/eval/nearest_neighbors.h"
 #include "banmo/extract/extract.h"
 #include "banmo/geometry/camera.h"
+#include "banmo/geometry/nearest_neighbors.h"
 #include "banmo/geometry/pose_manifold.h"
 #include "banmo/util/error.h"
 #include "banmo/util/median.h"
@@ -578,118 +578,207 @@ FrameMatches MatchFrameFeatures(const Eigen::MatrixXd& embedding, const Frame& f
   return matches;
 }
 
-FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const FrameMatches& matches,
-                                     int num_bones, const double* bones,
-                                     const Pose& camera_from_root,
-                                     const Eigen::Vector4d& intrinsics, const double* previous,
-                                     const BoneRegistrationConfig& config, double* bones_t,
-                                     const FrameSilhouette* silhouette,
-                                     const double* alternative_start) {
-  CHECK_GT(num_bones, 0);
-  const int B = num_bones;
-  ceres::Problem::Options problem_options;
-  problem_options.enable_fast_removal = true;  // the coverage ties are remade each round
-  ceres::Problem problem(problem_options);
-  auto block = [&](int b) { return bones_t + kPoseSize * b; };
-  for (int b = 0; b < B; ++b) {
-    problem.AddParameterBlock(
-        block(b), kPoseSize,
-        MakeStackedPivotPoseManifold(1, bones + kBoneSize * b, kBoneSize, kBoneCenter).release());
-  }
-  // Pixels per model unit at the root's depth: the joint and prior
-  // residuals in the matches' units.
-  const double scale = intrinsics[0] / std::max(camera_from_root[kPoseT + 2], kMinProjectionDepth);
-  const int n = static_cast<int>(matches.vertex.size());
-  std::vector<ceres::ResidualBlockId> match_blocks;
-  if (n > 0) {
-    auto* loss = new ceres::ScaledLoss(new ceres::HuberLoss(config.huber_px),
-                                       config.match_weight / n, ceres::TAKE_OWNERSHIP);
-    for (int i = 0; i < n; ++i) {
-      const SkinnedPoint& p = proxy.points[matches.vertex[i]];
-      std::vector<double*> blocks;
-      for (int b : p.bones) blocks.push_back(block(b));
-      match_blocks.push_back(problem.AddResidualBlock(
-          MakeSkinnedPixelCostFunction(p, camera_from_root, intrinsics, matches.pixel[i]).release(),
-          loss, blocks));
+namespace {
+
+// One frame's registration problem (RegisterFrameBones): the frame's bone
+// transforms as parameter blocks and the terms of step 4, added in a fixed
+// order (the order of Ceres' residual blocks fixes its sums' rounding).
+class FrameFit {
+ public:
+  FrameFit(const FrameRegistrationInputs& in, const BoneRegistrationConfig& config, double* bones_t)
+      : in_(in), config_(config), bones_t_(bones_t), problem_(ProblemOptions()) {
+    CHECK_GT(in.num_bones, 0);
+    for (int b = 0; b < in.num_bones; ++b) {
+      problem_.AddParameterBlock(
+          Block(b), kPoseSize,
+          MakeStackedPivotPoseManifold(1, in.bones + kBoneSize * b, kBoneSize, kBoneCenter)
+              .release());
     }
+    // Pixels per model unit at the root's depth: the joint and prior
+    // residuals in the matches' units.
+    scale_ = in.intrinsics[0] / std::max(in.camera_from_root[kPoseT + 2], kMinProjectionDepth);
   }
-  const cv::Mat* mask_distance = silhouette != nullptr ? &silhouette->outside_distance : nullptr;
-  if (config.mask_weight > 0 && mask_distance != nullptr && !mask_distance->empty() &&
-      !proxy.points.empty()) {
-    // Every stride-th fitted vertex (the proxy's are a random subset).
-    const int total = static_cast<int>(proxy.points.size());
-    const int stride = std::max(1, (total + config.mask_points - 1) / config.mask_points);
-    const int m = (total + stride - 1) / stride;
-    auto* loss = new ceres::ScaledLoss(new ceres::HuberLoss(config.huber_px),
-                                       config.mask_weight / m, ceres::TAKE_OWNERSHIP);
-    for (int i = 0; i < total; i += stride) {
-      const SkinnedPoint& p = proxy.points[i];
-      std::vector<double*> blocks;
-      for (int b : p.bones) blocks.push_back(block(b));
-      problem.AddResidualBlock(
-          MakeSkinnedMaskCostFunction(p, camera_from_root, intrinsics, *mask_distance).release(),
-          loss, blocks);
-    }
+
+  // The match, mask, joint and prior terms (not the coverage ties).
+  void AddTerms() {
+    AddMatchTerms();
+    AddMaskTerms();
+    AddJointTerms();
+    AddPriorTerms();
   }
-  int shared = 0;
-  for (const RegistrationProxy::Pair& pair : proxy.pairs) shared += pair.points.size();
-  if (config.joint_weight > 0 && shared > 0) {
-    // One block per pair: the same sum of squares as a block per shared
-    // point (MakeBonePairMomentCostFunction), 12 rows instead of 3 a point.
-    const double s = std::sqrt(config.joint_weight / shared) * scale;
-    for (const RegistrationProxy::Pair& pair : proxy.pairs) {
-      problem.AddResidualBlock(MakeBonePairMomentCostFunction(pair.points, s).release(), nullptr,
-                               block(pair.a), block(pair.b));
-    }
+
+  // With in.alternative_start: starts from it when the terms cost less there
+  // (the coverage ties, made from the start, are not added yet).
+  bool ChooseStart() {
+    if (in_.alternative_start == nullptr) return false;
+    const int size = kPoseSize * in_.num_bones;
+    const std::vector<double> own(bones_t_, bones_t_ + size);
+    const double own_cost = Cost();
+    std::copy(in_.alternative_start, in_.alternative_start + size, bones_t_);
+    if (Cost() < own_cost) return true;
+    std::copy(own.begin(), own.end(), bones_t_);
+    return false;
   }
-  for (int b = 0; b < B; ++b) {
-    const Eigen::Vector3d c(bones + kBoneSize * b + kBoneCenter);
-    const Pose reference = previous != nullptr
-                               ? Pose(Eigen::Map<const Pose>(previous + kPoseSize * b))
-                               : PoseIdentity();
-    if (config.smooth_weight > 0) {
-      problem.AddResidualBlock(
-          MakeBonePriorCostFunction(reference, c, std::sqrt(config.smooth_weight / B) * scale)
-              .release(),
-          nullptr, block(b));
-    }
-    if (config.rest_weight > 0) {
-      problem.AddResidualBlock(
-          MakeBonePriorCostFunction(PoseIdentity(), c, std::sqrt(config.rest_weight / B) * scale)
-              .release(),
-          nullptr, block(b));
-    }
-  }
-  auto median_match_px = [&] {
+
+  double MedianMatchPx() {
     std::vector<double> norms;
-    for (ceres::ResidualBlockId id : match_blocks) {
+    for (ceres::ResidualBlockId id : match_blocks_) {
       double r[2];
-      problem.EvaluateResidualBlock(id, false, nullptr, r, nullptr);
+      problem_.EvaluateResidualBlock(id, false, nullptr, r, nullptr);
       norms.push_back(std::hypot(r[0], r[1]));
     }
     return norms.empty() ? 0.0 : Median(norms);
-  };
-  FrameRegistration out;
-  if (alternative_start != nullptr) {
-    // Both starts under the same terms (the coverage ties, made from the
-    // start, are not added yet).
-    auto cost_here = [&] {
-      double cost = 0.0;
-      problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
-      return cost;
-    };
-    const std::vector<double> own(bones_t, bones_t + kPoseSize * B);
-    const double own_cost = cost_here();
-    std::copy(alternative_start, alternative_start + kPoseSize * B, bones_t);
-    if (cost_here() < own_cost) {
-      out.started_from_alternative = true;
-    } else {
-      std::copy(own.begin(), own.end(), bones_t);
+  }
+
+  bool HasCoverage() const {
+    return config_.coverage_weight > 0 && in_.silhouette != nullptr &&
+           !in_.silhouette->object_pixels.empty() && !in_.proxy->points.empty();
+  }
+
+  // 2D ICP: each object pixel tied to the nearest projection under the
+  // current fit, the previous round's ties removed (a fresh loss each
+  // round: removing a round's blocks deletes the loss they share).
+  void TieCoverage() {
+    for (ceres::ResidualBlockId id : coverage_blocks_) problem_.RemoveResidualBlock(id);
+    coverage_blocks_.clear();
+    const std::vector<SkinnedPoint>& points = in_.proxy->points;
+    const std::vector<Eigen::Vector2d>& pixels = in_.silhouette->object_pixels;
+    // The projections as points of the plane z = 0 of an exact kd-tree
+    // (a brute-force search was 128 ms a frame at 10 rounds, 13,266
+    // vertices and 500 pixels).
+    Eigen::Matrix3Xd projected = Eigen::Matrix3Xd::Zero(3, points.size());
+    for (size_t i = 0; i < points.size(); ++i) {
+      const SkinnedPoint& p = points[i];
+      std::vector<const double*> blocks;
+      for (int b : p.bones) blocks.push_back(Block(b));
+      double uv[2];
+      ProjectSkinnedPoint(p, in_.camera_from_root, in_.intrinsics, blocks.data(), uv);
+      projected(0, i) = uv[0];
+      projected(1, i) = uv[1];
+    }
+    const KdTree3 tree(projected);
+    auto* loss =
+        new ceres::ScaledLoss(new ceres::HuberLoss(config_.huber_px),
+                              config_.coverage_weight / pixels.size(), ceres::TAKE_OWNERSHIP);
+    for (const Eigen::Vector2d& q : pixels) {
+      const SkinnedPoint& p = points[tree.Nearest(Eigen::Vector3d(q.x(), q.y(), 0.0))];
+      coverage_blocks_.push_back(problem_.AddResidualBlock(
+          MakeSkinnedPixelCostFunction(p, in_.camera_from_root, in_.intrinsics, q).release(), loss,
+          Blocks(p)));
     }
   }
-  out.median_match_px_before = median_match_px();
-  const bool coverage = config.coverage_weight > 0 && silhouette != nullptr &&
-                        !silhouette->object_pixels.empty() && !proxy.points.empty();
+
+  ceres::Problem& problem() { return problem_; }
+
+ private:
+  static ceres::Problem::Options ProblemOptions() {
+    ceres::Problem::Options options;
+    options.enable_fast_removal = true;  // the coverage ties are remade each round
+    return options;
+  }
+  double* Block(int b) const { return bones_t_ + kPoseSize * b; }
+  std::vector<double*> Blocks(const SkinnedPoint& p) const {
+    std::vector<double*> blocks;
+    for (int b : p.bones) blocks.push_back(Block(b));
+    return blocks;
+  }
+  double Cost() {
+    double cost = 0.0;
+    problem_.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
+    return cost;
+  }
+
+  void AddMatchTerms() {
+    const FrameMatches& matches = *in_.matches;
+    const int n = static_cast<int>(matches.vertex.size());
+    if (n == 0) return;
+    auto* loss = new ceres::ScaledLoss(new ceres::HuberLoss(config_.huber_px),
+                                       config_.match_weight / n, ceres::TAKE_OWNERSHIP);
+    for (int i = 0; i < n; ++i) {
+      const SkinnedPoint& p = in_.proxy->points[matches.vertex[i]];
+      match_blocks_.push_back(problem_.AddResidualBlock(
+          MakeSkinnedPixelCostFunction(p, in_.camera_from_root, in_.intrinsics, matches.pixel[i])
+              .release(),
+          loss, Blocks(p)));
+    }
+  }
+
+  void AddMaskTerms() {
+    const cv::Mat* distance =
+        in_.silhouette != nullptr ? &in_.silhouette->outside_distance : nullptr;
+    const std::vector<SkinnedPoint>& points = in_.proxy->points;
+    if (config_.mask_weight <= 0 || distance == nullptr || distance->empty() || points.empty()) {
+      return;
+    }
+    // Every stride-th fitted vertex (the proxy's are a random subset).
+    const int total = static_cast<int>(points.size());
+    const int stride = std::max(1, (total + config_.mask_points - 1) / config_.mask_points);
+    const int m = (total + stride - 1) / stride;
+    auto* loss = new ceres::ScaledLoss(new ceres::HuberLoss(config_.huber_px),
+                                       config_.mask_weight / m, ceres::TAKE_OWNERSHIP);
+    for (int i = 0; i < total; i += stride) {
+      problem_.AddResidualBlock(
+          MakeSkinnedMaskCostFunction(points[i], in_.camera_from_root, in_.intrinsics, *distance)
+              .release(),
+          loss, Blocks(points[i]));
+    }
+  }
+
+  void AddJointTerms() {
+    int shared = 0;
+    for (const RegistrationProxy::Pair& pair : in_.proxy->pairs) shared += pair.points.size();
+    if (config_.joint_weight <= 0 || shared == 0) return;
+    // One block per pair: the same sum of squares as a block per shared
+    // point (MakeBonePairMomentCostFunction), 12 rows instead of 3 a point.
+    const double s = std::sqrt(config_.joint_weight / shared) * scale_;
+    for (const RegistrationProxy::Pair& pair : in_.proxy->pairs) {
+      problem_.AddResidualBlock(MakeBonePairMomentCostFunction(pair.points, s).release(), nullptr,
+                                Block(pair.a), Block(pair.b));
+    }
+  }
+
+  void AddPriorTerms() {
+    const int B = in_.num_bones;
+    for (int b = 0; b < B; ++b) {
+      const Eigen::Vector3d c(in_.bones + kBoneSize * b + kBoneCenter);
+      const Pose reference = in_.previous != nullptr
+                                 ? Pose(Eigen::Map<const Pose>(in_.previous + kPoseSize * b))
+                                 : PoseIdentity();
+      if (config_.smooth_weight > 0) {
+        problem_.AddResidualBlock(
+            MakeBonePriorCostFunction(reference, c, std::sqrt(config_.smooth_weight / B) * scale_)
+                .release(),
+            nullptr, Block(b));
+      }
+      if (config_.rest_weight > 0) {
+        problem_.AddResidualBlock(
+            MakeBonePriorCostFunction(PoseIdentity(), c,
+                                      std::sqrt(config_.rest_weight / B) * scale_)
+                .release(),
+            nullptr, Block(b));
+      }
+    }
+  }
+
+  const FrameRegistrationInputs& in_;
+  const BoneRegistrationConfig& config_;
+  double* bones_t_;
+  ceres::Problem problem_;
+  double scale_ = 0.0;
+  std::vector<ceres::ResidualBlockId> match_blocks_;
+  std::vector<ceres::ResidualBlockId> coverage_blocks_;
+};
+
+}  // namespace
+
+FrameRegistration RegisterFrameBones(const FrameRegistrationInputs& in,
+                                     const BoneRegistrationConfig& config, double* bones_t) {
+  FrameFit fit(in, config, bones_t);
+  fit.AddTerms();
+  FrameRegistration out;
+  out.started_from_alternative = fit.ChooseStart();
+  out.median_match_px_before = fit.MedianMatchPx();
+  const bool coverage = fit.HasCoverage();
   const int rounds = coverage ? config.coverage_rounds : 1;
   ceres::Solver::Options options;
   options.max_num_iterations = std::max(1, (config.iterations + rounds - 1) / rounds);
@@ -702,49 +791,15 @@ FrameRegistration RegisterFrameBones(const RegistrationProxy& proxy, const Frame
   options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
-  std::vector<ceres::ResidualBlockId> coverage_blocks;
   for (int round = 0; round < rounds; ++round) {
-    if (coverage) {
-      // 2D ICP: each pixel tied to the nearest projection under the
-      // current fit (a fresh loss each round: removing a round's blocks
-      // deletes the loss they share).
-      for (ceres::ResidualBlockId id : coverage_blocks) problem.RemoveResidualBlock(id);
-      coverage_blocks.clear();
-      const std::vector<Eigen::Vector2d>& pixels = silhouette->object_pixels;
-      // The projections as points of the plane z = 0 of an exact kd-tree
-      // (a brute-force search was 128 ms a frame at 10 rounds, 13,266
-      // vertices and 500 pixels).
-      Eigen::Matrix3Xd projected = Eigen::Matrix3Xd::Zero(3, proxy.points.size());
-      for (size_t i = 0; i < proxy.points.size(); ++i) {
-        const SkinnedPoint& p = proxy.points[i];
-        std::vector<const double*> blocks;
-        for (int b : p.bones) blocks.push_back(block(b));
-        double uv[2];
-        ProjectSkinnedPoint(p, camera_from_root, intrinsics, blocks.data(), uv);
-        projected(0, i) = uv[0];
-        projected(1, i) = uv[1];
-      }
-      const KdTree3 tree(projected);
-      auto* loss =
-          new ceres::ScaledLoss(new ceres::HuberLoss(config.huber_px),
-                                config.coverage_weight / pixels.size(), ceres::TAKE_OWNERSHIP);
-      for (const Eigen::Vector2d& q : pixels) {
-        const int nearest = tree.Nearest(Eigen::Vector3d(q.x(), q.y(), 0.0));
-        const SkinnedPoint& p = proxy.points[nearest];
-        std::vector<double*> blocks;
-        for (int b : p.bones) blocks.push_back(block(b));
-        coverage_blocks.push_back(problem.AddResidualBlock(
-            MakeSkinnedPixelCostFunction(p, camera_from_root, intrinsics, q).release(), loss,
-            blocks));
-      }
-    }
+    if (coverage) fit.TieCoverage();
     ceres::Solver::Summary summary;
-    ceres::Solve(options, &problem, &summary);
+    ceres::Solve(options, &fit.problem(), &summary);
     if (round == 0) out.initial_cost = summary.initial_cost;
     out.final_cost = summary.final_cost;
     out.iterations += static_cast<int>(summary.iterations.size()) - 1;
   }
-  out.median_match_px_after = median_match_px();
+  out.median_match_px_after = fit.MedianMatchPx();
   return out;
 }
 
@@ -858,9 +913,17 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
           silhouette.object_pixels = SampleObjectPixels(
               f.mask, config.coverage_pixels, seed + 104729u * static_cast<std::uint32_t>(k + 1));
         }
-        results[k] = RegisterFrameBones(proxy, matches, B, model->bones(), model->RootPose(v, t),
-                                        model->video(v).intrinsics, previous, config, bones_t,
-                                        &silhouette, alternative);
+        FrameRegistrationInputs in;
+        in.proxy = &proxy;
+        in.matches = &matches;
+        in.num_bones = B;
+        in.bones = model->bones();
+        in.camera_from_root = model->RootPose(v, t);
+        in.intrinsics = model->video(v).intrinsics;
+        in.previous = previous;
+        in.silhouette = &silhouette;
+        in.alternative_start = alternative;
+        results[k] = RegisterFrameBones(in, config, bones_t);
         done[k] = 1;
         previous = bones_t;
       }

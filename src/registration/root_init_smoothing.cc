@@ -1,4 +1,4 @@
-#include "banmo/optim/root_init_smoothing.h"
+#include "banmo/registration/root_init_smoothing.h"
 
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>

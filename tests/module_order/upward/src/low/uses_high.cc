@@ -1,0 +1,1 @@
+#include "banmo/high/thing.h"
