@@ -7,7 +7,8 @@
 # BANMO: the banmo binary (e.g. build/bin/banmo); WORK: a folder for the
 # scenes and results (kept; the campaign resumes where it stopped: cycles
 # already in WORK/results.tsv are not rerun); N: kills per command
-# (default 20); COMMAND: any of solve, extract, prepare-add (default all).
+# (default 20): cycles go on until N of them killed the command mid-run;
+# COMMAND: any of solve, extract, prepare-add (default all).
 #
 # solve:       a 160-batch solve of a 2-video, 6-frame, 32 px synthetic scene
 #              (problems/tiny.yaml with fewer batches, a checkpoint every 5
@@ -190,10 +191,13 @@ cycle_extract() {
     state="INCOMPLETE"
     fail=1
   else
-    # Complete: every file either the earlier run's or the killed run's.
-    local old=0 new=0 f
+    # Complete: every file either the earlier run's or the killed run's
+    # (some, e.g. bones.ply, are the same in both).
+    local old=0 new=0 both=0 f
     while read -r f; do
-      if same "$out/$f" "ex_ref/$f"; then
+      if same "$out/$f" "ex_ref/$f" && [ -e "ex_old/$f" ] && same "$out/$f" "ex_old/$f"; then
+        both=$((both + 1))
+      elif same "$out/$f" "ex_ref/$f"; then
         new=$((new + 1))
       elif same "$out/$f" "ex_old/$f"; then
         old=$((old + 1))
@@ -202,7 +206,7 @@ cycle_extract() {
         detail+=" $f is neither;"
       fi
     done < <(files_of "$out")
-    state="complete(old $old, new $new)"
+    state="complete (files of the earlier run $old, of the killed run $new, same in both $both)"
     if ! run eval --pred "$out/frames" --gt ds --threads 1 --gt-mode vertices \
       --icp-iterations 0 >"$work/next.log" 2>&1; then
       fail=1
@@ -284,8 +288,12 @@ cycle_add() {
 setup
 cd "$work" || exit 1
 for c in "${commands[@]}"; do
-  done_cycles="$(awk -F'\t' -v c="$c" '$1 == c' "$results" | wc -l)"
-  for ((i = done_cycles + 1; i <= n; i++)); do
+  # Cycles go on until N of them killed the command mid-run (a run that
+  # ended before its delay counts as a cycle, not as a kill).
+  while :; do
+    killed="$(awk -F'\t' -v c="$c" '$1 == c && $4 == "killed"' "$results" | wc -l)"
+    [ "$killed" -lt "$n" ] || break
+    i=$(($(awk -F'\t' -v c="$c" '$1 == c' "$results" | wc -l) + 1))
     case "$c" in
       solve) cycle_solve "$i" ;;
       extract) cycle_extract "$i" ;;
