@@ -13,7 +13,7 @@ if ! command -v "$clang_format" >/dev/null; then
 fi
 # Tracked and untracked-but-not-ignored files, so a new file is checked before it is added.
 mapfile -t files < <(git ls-files --cached --others --exclude-standard -- \
-  src include tools tests benchmarks | grep -E '\.(cc|cpp|h|hpp)$' | sort -u |
+  src include tools tests benchmarks fuzz | grep -E '\.(cc|cpp|h|hpp)$' | sort -u |
   while read -r f; do [ -f "$f" ] && echo "$f"; done)  # skip files deleted but still indexed
 [ ${#files[@]} -gt 0 ] || { echo "[format] no files"; exit 0; }
 # One clang-format process for all files: --dry-run reports each change as

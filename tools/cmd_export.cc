@@ -14,6 +14,7 @@
 #include "banmo/extract/extract.h"
 #include "banmo/gltf/export.h"
 #include "banmo/model/model_file.h"
+#include "banmo/util/atomic_file.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
@@ -134,6 +135,12 @@ int RunExport(int argc, char** argv) {
   std::printf("model %s: %d videos, %d frames, %d bones\n", model_dir.c_str(), model->num_videos(),
               num_frames, model->num_bones());
   std::fflush(stdout);
+  // The file is written beside under a temporary name and renamed; a killed
+  // run's temporary file is removed here.
+  if (const int stale = RemoveStaleTempFilesOf(out_path); stale > 0) {
+    std::fprintf(stderr, "banmo export: removed %d temporary file(s) of a killed run beside %s\n",
+                 stale, out_path.c_str());
+  }
   const GltfExportSummary s = ExportGltf(*model, options, out_path, [](const std::string& line) {
     std::fprintf(stderr, "  %s\n", line.c_str());
   });

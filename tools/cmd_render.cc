@@ -12,6 +12,7 @@
 #include "banmo/extract/extract.h"
 #include "banmo/io/dataset.h"
 #include "banmo/model/model_file.h"
+#include "banmo/util/atomic_file.h"
 #include "banmo/util/enum_names.h"
 #include "banmo/util/error.h"
 #include "banmo/util/parallel.h"
@@ -284,7 +285,8 @@ int RunRender(int argc, char** argv) {
       "articulated mesh (Lambert shading, input camera) and the mesh coloured by dominant bone. "
       "OUT/errors/ holds the rgb, mask and flow error maps (INFERNO colour scale, 0 = black, the "
       "--*-error-max value = pale yellow, grey = undefined) and OUT/errors.csv the per-frame "
-      "means. Files of the same names in OUT are replaced.",
+      "means. Files of the same names in OUT are replaced; all of them appear at the end (a failed "
+      "or killed run leaves none).",
       "banmo render"};
   RenderArgs a;
   AddRenderOptions(&app, &a);
@@ -308,8 +310,19 @@ int RunRender(int argc, char** argv) {
 
   if (!explicit_bounds) options.frame.canonical_bounds = CanonicalBoundsFromSurface(*model);
   PrintPlan(a.model_dir, *model, frames.size(), options, explicit_bounds);
-  const SequenceSummary summary =
-      RenderSequence(*model, dataset, frames, options, a.out_dir, PrintFrameReport);
+  // Everything goes to a staging folder put in place at the end: a failed or
+  // killed run leaves no partial set of pictures (docs/robustness.md).
+  StagedOutput staged(a.out_dir, "render");
+  if (!staged.recovery_note().empty()) {
+    std::fprintf(stderr, "banmo render: %s\n", staged.recovery_note().c_str());
+  }
+  SequenceSummary summary =
+      RenderSequence(*model, dataset, frames, options, staged.path(), PrintFrameReport);
+  staged.Commit();
+  if (!summary.video_path.empty()) summary.video_path = staged.FinalPath(summary.video_path);
+  if (!summary.turntable_video_path.empty()) {
+    summary.turntable_video_path = staged.FinalPath(summary.turntable_video_path);
+  }
   PrintSummary(summary, options, a.out_dir, total.Seconds());
   return 0;
 }

@@ -2,7 +2,8 @@
 # README command 2, and CI (.ci/run): install what is missing, then
 #   1. format:    tools/check_format.sh (clang-format, fails on unformatted code)
 #   2. sanitizer: tools/run_sanitizer_tests.sh (ASan + UBSan build in build-asan/,
-#                 assertions on, quick test set)
+#                 assertions on, quick test set, then each fuzz target of fuzz/
+#                 for 10 s with the smoke driver: docs/robustness.md)
 #   3. release:   tools/build.sh (Release, -Werror on our code, build/) + ctest
 # and print the wall time of each part. The Release ctest runs last, so the last
 # lines are its summary. Stops at the first part that fails.
@@ -30,9 +31,9 @@ end format
 if [ "${BANMO_SANITIZE:-1}" = 0 ] && [ "${CI:-}" != true ]; then
   echo "[ci] sanitizer part skipped (BANMO_SANITIZE=0)"
 else
-  begin "ASan + UBSan build and quick tests (build-asan/)"
+  begin "ASan + UBSan build, quick tests and fuzz smoke (build-asan/)"
   bash "$root/tools/run_sanitizer_tests.sh"
-  end "sanitizer build + quick ctest"
+  end "sanitizer build + quick ctest + fuzz smoke"
 fi
 
 begin "Release build (build/)"

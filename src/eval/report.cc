@@ -184,10 +184,13 @@ std::string FormatReportTable(const EvalReport& report) {
 
 void WriteEvalOutputs(const std::string& dir, const EvalReport& report,
                       const EvalOptions& options) {
-  MakeDirectories(dir);
-  const std::filesystem::path base(dir);
+  // Both files appear together (docs/robustness.md): a killed run leaves
+  // neither a new per_frame.csv beside an old summary.json nor the reverse.
+  StagedOutput staged(dir, "eval");
+  const std::filesystem::path base(staged.path());
   WriteFileAtomic((base / "per_frame.csv").string(), FormatPerFrameCsv(report));
   WriteFileAtomic((base / "summary.json").string(), FormatSummaryJson(report, options));
+  staged.Commit();
 }
 
 }  // namespace banmo

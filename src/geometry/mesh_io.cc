@@ -116,12 +116,15 @@ bool HostIsLittleEndian() {
 
 // Checks what CGAL's PLY reader assumes without checking: the vertex
 // coordinates x, y, z are float or double properties (an integer one is a
-// null pointer dereference in CGAL, an assertion in debug builds; found by
-// fuzz/fuzz_mesh.cc) and the header ends within 64 KiB.
+// null pointer dereference in CGAL, an assertion in debug builds), every
+// property line follows an element line (CGAL adds it to the last element
+// of an empty list: undefined behaviour) and the header ends within 64 KiB.
+// Both were found by fuzz/fuzz_mesh.cc. Lines are split as CGAL splits them.
 void CheckPlyHeader(const std::string& path) {
   std::ifstream is(path, std::ios::binary);
   if (!is) ThrowInputError(path, ": cannot open mesh file for reading");
   std::string line, element;
+  bool any_element = false;
   std::size_t read = 0;
   while (std::getline(is, line)) {
     read += line.size() + 1;
@@ -133,6 +136,9 @@ void CheckPlyHeader(const std::string& path) {
     if (keyword == "end_header") return;
     if (keyword == "element") {
       words >> element;
+      any_element = true;
+    } else if (keyword == "property" && !any_element) {
+      ThrowInputError(path, ": PLY header has a property before any element line");
     } else if (keyword == "property" && element == "vertex") {
       std::string type, name;
       words >> type >> name;

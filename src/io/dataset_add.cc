@@ -1,11 +1,9 @@
 // AddVideosToDataset: new videos into an existing dataset, written beside it
 // first, moved in, manifest replaced last.
 #include <fcntl.h>
-#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -63,13 +61,6 @@ void CheckAddition(const Dataset& added, const std::string& dir, const internal:
                       "' (videos: ", JoinNames(existing), "); choose another name (--name)");
     }
   }
-}
-
-// True unless the process `pid` is known to be gone (ESRCH): a staging
-// folder of a running add is left alone.
-bool ProcessMayBeAlive(long pid) {
-  if (pid <= 0) return false;
-  return ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH;
 }
 
 // The pid in a staging folder's name `<root>.add-<pid>-<n>`, or -1.

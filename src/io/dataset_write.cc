@@ -5,12 +5,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <set>
+#include <vector>
 
 #include "banmo/geometry/mesh_io.h"
 #include "banmo/io/codecs.h"
@@ -455,6 +457,46 @@ void MoveIntoPlace(const std::string& temp, const fs::path& target, std::random_
   }
 }
 
+// What a killed WriteDataset left beside `target`: `<target>.tmp-<pid>-<n>`
+// folders (a dataset being written) are removed; a `<target>.old-<pid>-<n>`
+// folder (killed between MoveIntoPlace's two renames) is moved back when
+// the target is missing (the old dataset is restored), else removed. Only
+// folders of processes that are gone are touched.
+void RecoverKilledWrite(const fs::path& target) {
+  const std::string base = target.filename().string();
+  if (base.empty() || base == "." || base == "..") return;
+  const fs::path parent = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  std::error_code ec;
+  std::vector<fs::path> temps, olds;
+  for (const auto& entry : fs::directory_iterator(parent, ec)) {
+    const std::string name = entry.path().filename().string();
+    for (const char* kind : {".tmp-", ".old-"}) {
+      const std::string prefix = base + kind;
+      if (name.rfind(prefix, 0) != 0 || !entry.is_directory(ec)) continue;
+      char* end = nullptr;
+      const std::string rest = name.substr(prefix.size());
+      const long pid = std::strtol(rest.c_str(), &end, 10);
+      if (end == rest.c_str() || *end != '-' || ProcessMayBeAlive(pid)) continue;
+      (kind[1] == 't' ? temps : olds).push_back(entry.path());
+    }
+  }
+  for (const fs::path& old : olds) {
+    if (!fs::exists(target, ec)) {
+      fs::rename(old, target, ec);
+      if (!ec) {
+        LOG(WARNING) << target.string() << ": restored from " << old.string()
+                     << " (a write of this dataset was killed between its renames)";
+        continue;
+      }
+    }
+    fs::remove_all(old, ec);
+  }
+  for (const fs::path& temp : temps) {
+    fs::remove_all(temp, ec);
+    LOG(WARNING) << "removed " << temp.string() << " (a killed write of " << target.string() << ")";
+  }
+}
+
 }  // namespace
 
 void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOptions& options,
@@ -462,6 +504,11 @@ void WriteDataset(const Dataset& dataset, const std::string& dir, const WriteOpt
   options.Check();
   if (dir.empty()) ThrowInputError("WriteDataset: empty output folder name");
   const internal::Manifest manifest = CheckedManifest(dataset, options, gt_meshes);
+  {
+    fs::path normal = fs::path(dir).lexically_normal();
+    if (normal.filename().empty()) normal = normal.parent_path();
+    RecoverKilledWrite(normal);
+  }
   const fs::path target = CheckedTarget(dir, options.overwrite);
   if (!target.parent_path().empty()) MakeDirectories(target.parent_path().string());
   std::random_device rd;

@@ -84,7 +84,7 @@ TEST_F(MeshIo, ObjRoundTripAndExtensionDispatch) {
 
 // Found by fuzz/fuzz_mesh.cc: an integer vertex coordinate made CGAL's PLY
 // reader dereference a null pointer (an assertion in debug builds).
-TEST_F(MeshIo, IntegerCoordinatesAndUnendedHeadersAreRefused) {
+TEST_F(MeshIo, IntegerCoordinatesOrphanPropertiesAndUnendedHeadersAreRefused) {
   const std::string path =
       WriteText("int.ply",
                 "ply\nformat ascii 1.0\nelement vertex 3\n"
@@ -93,6 +93,15 @@ TEST_F(MeshIo, IntegerCoordinatesAndUnendedHeadersAreRefused) {
                 "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   EXPECT_EQ(ReadError(path),
             path + ": PLY vertex property 'z' has type 'uint32', expected float or double");
+  // Found by the 10-minute run: a property line before any element line
+  // (here "element" misspelt) was added by CGAL to the last element of an
+  // empty list (undefined behaviour, UBSan).
+  const std::string orphan =
+      WriteText("orphan.ply",
+                "ply\nformat ascii 1.0\nelement$ vertex 3\n"
+                "property float x\nproperty float y\nproperty float z\nend_header\n"
+                "0 0 0\n1 0 0\n0 1 0\n");
+  EXPECT_EQ(ReadError(orphan), orphan + ": PLY header has a property before any element line");
   const std::string open = WriteText("open.ply", "ply\nformat ascii 1.0\nelement vertex 3\n");
   EXPECT_EQ(ReadError(open), open +
                                  ": could not parse the mesh (expected a valid .ply file; no "

@@ -192,6 +192,38 @@ TEST(HostileDataset, AddKilledBetweenItsRenamesIsRecovered) {
   }
 }
 
+// synth / prepare killed while writing a dataset (WriteDataset): the next
+// write to the same folder removes the killed run's temporary folder, and a
+// kill between the two renames of an --overwrite (old dataset moved aside,
+// new one not yet in place) gets the old dataset back.
+TEST(HostileDataset, AKilledDatasetWriteIsCleanedUpByTheNextWrite) {
+  const Dataset one = MakeSmallDataset();
+  TempDir tmp;
+  const std::string dir = tmp.path() + "/ds";
+  const std::string dead = std::to_string(DeadPid());
+  const std::string temp = dir + ".tmp-" + dead + "-12";
+  WriteDataset(one, temp, WriteOptions());  // a complete dataset never renamed
+  WriteDataset(one, dir, WriteOptions());
+  EXPECT_FALSE(fs::exists(temp));
+  // Killed between the renames of an overwrite: ds moved aside, not replaced.
+  const std::string old = dir + ".old-" + dead + "-3";
+  fs::rename(dir, old);
+  WriteOptions overwrite;
+  overwrite.overwrite = true;
+  WriteDataset(one, dir, overwrite);  // restores ds first, then replaces it
+  EXPECT_FALSE(fs::exists(old));
+  EXPECT_EQ(LoadDataset(dir, LoadAll()).videos.size(), one.videos.size());
+  fs::rename(dir, old);
+  EXPECT_THROW(WriteDataset(one, dir, WriteOptions()), InputError);  // restored: not empty
+  EXPECT_FALSE(fs::exists(old));
+  EXPECT_EQ(LoadDataset(dir, LoadAll()).videos.size(), one.videos.size());
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(tmp.path())) {
+    left.push_back(e.path().filename().string());
+  }
+  EXPECT_EQ(left, std::vector<std::string>{"ds"});
+}
+
 TEST(HostileDataset, PngHeaderBeyondTheLimitsIsRefusedBeforeDecoding) {
   // Signature and an IHDR of 100000 x 100000 (nothing else: never decoded).
   std::string png("\x89PNG\r\n\x1a\n", 8);

@@ -166,6 +166,38 @@ TEST_F(RenderCli, DefaultSelectionIsEveryKthFrame) {
   EXPECT_FALSE(fs::exists(out + "/frames/video00_frame00001.png"));
 }
 
+// kill -9 in the middle of a render: OUT does not appear (the frames are in
+// a staging folder beside it), and the next render removes that folder and
+// writes OUT whole (docs/robustness.md, "Nothing half-written").
+TEST_F(RenderCli, AKilledRunLeavesNoPartialFolderAndTheNextRunRecovers) {
+  const std::string out = Path("killed");
+  const std::string staging_glob = Path(".killed.render.staging-") + "$p";
+  // Slow options (every frame, many samples and passes); killed as soon as
+  // the first frame is in the staging folder.
+  const auto killed = testing::RunShell(
+      std::string(BANMO_BINARY) + " render --model " + Model() + " --data " + Data() + " --out " +
+      out +
+      " --every 1 --samples 64 --jitter-passes 4 --mesh-resolution 0 --scale 1 --threads 1 "
+      ">/dev/null 2>&1 & p=$!; for i in $(seq 1 2400); do "
+      "ls " +
+      staging_glob +
+      "/frames/*.png >/dev/null 2>&1 && break; sleep 0.05; done; "
+      "kill -9 $p; wait $p; ls -d " +
+      staging_glob + " && echo staged");
+  ASSERT_NE(killed.out.find("staged"), std::string::npos) << killed.out;
+  EXPECT_FALSE(fs::exists(out));
+  const auto r = RunBanmo("render --model " + Model() + " --data " + Data() + " --out " + out +
+                          " --every 6 --mesh-resolution 0 --scale 1");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("removed the incomplete staging folder"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(out + "/frames/video00_frame00000.png"));
+  EXPECT_TRUE(fs::exists(out + "/errors.csv"));
+  for (const auto& e : fs::directory_iterator(*root_)) {
+    EXPECT_EQ(e.path().filename().string().find(".killed.render.staging"), std::string::npos)
+        << e.path();
+  }
+}
+
 TEST_F(RenderCli, MissingModelIsAnErrorAndWritesNothing) {
   const std::string out = Path("missing_model");
   const auto r = RunBanmo("render --model " + Path("nope") + " --data " + Data() + " --out " + out);

@@ -23,7 +23,7 @@ std::string FormatSummaryJson(const EvalReport& report, const EvalOptions& optio
 std::string FormatReportTable(const EvalReport& report);
 
 // Writes per_frame.csv and summary.json into `dir` (created if missing),
-// each atomically (util/atomic_file.h).
+// both through one StagedOutput (util/atomic_file.h): they appear together.
 void WriteEvalOutputs(const std::string& dir, const EvalReport& report, const EvalOptions& options);
 
 }  // namespace banmo

@@ -110,8 +110,10 @@ Dataset LoadDataset(const std::string& dir, const LoadOptions& options = {});
 // Writes `dataset` to `dir` in the documented layout. gt_meshes, if given,
 // holds one posed mesh per frame per video (camera coordinates). The folder is
 // written under a temporary name and renamed into place, so a failed write
-// leaves nothing half-written. Throws InputError if `dir` exists and is not
-// empty, unless overwrite is true.
+// leaves nothing half-written; what a killed write to the same folder left
+// beside it (`<dir>.tmp-<pid>-<n>`, `<dir>.old-<pid>-<n>`) is removed or
+// restored first. Throws InputError if `dir` exists and is not empty, unless
+// overwrite is true.
 void WriteDataset(const Dataset& dataset, const std::string& dir,
                   const std::vector<std::vector<TriangleMesh>>* gt_meshes = nullptr,
                   bool overwrite = false);
