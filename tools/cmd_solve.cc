@@ -65,6 +65,31 @@ void AddSolveOptions(CLI::App* app, SolveArgs* a) {
   app->add_flag("--quiet", a->quiet, "No progress lines");
 }
 
+// A solve killed before its first checkpoint left OUT with config.yaml (and
+// perhaps holdout.yaml or a partial checkpoint.tmp) and nothing to resume:
+// --resume then starts it again from the beginning, which is what the
+// uninterrupted solve did, with the seed and --holdout-every it recorded
+// (unless given again). Changes `a` into the arguments of that fresh solve.
+void RestartIfNoCheckpointYet(const CLI::App& app, SolveArgs* a) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const std::string& out = a->out_dir;
+  if (!a->resume || fs::exists(out + "/checkpoint/model.yaml", ec) ||
+      fs::exists(out + "/checkpoint.old/model.yaml", ec) ||
+      !fs::is_regular_file(out + "/config.yaml", ec)) {
+    return;
+  }
+  if (a->seed < 0) a->seed = static_cast<int>(LoadSolverConfig(out + "/config.yaml").seed);
+  a->holdout_every =
+      ResolveHoldoutEvery(out, true, app.count("--holdout-every") > 0, a->holdout_every);
+  std::printf(
+      "banmo solve: %s has no checkpoint yet (the solve stopped before its first): starting "
+      "it again from the beginning (seed %d)\n",
+      out.c_str(), a->seed);
+  a->resume = false;
+  a->overwrite = true;
+}
+
 // The config with the command line's overrides; checks the arguments and
 // the output folder (InputError naming the option). *retarget_auto_sized:
 // automatic sizing was switched off for --retarget.
@@ -197,6 +222,7 @@ int RunSolve(int argc, char** argv) {
   SolveArgs a;
   AddSolveOptions(&app, &a);
   CLI11_PARSE(app, argc, argv);
+  RestartIfNoCheckpointYet(app, &a);
   bool retarget_auto_sized = false;
   const SolverConfig config = ResolveSolveConfig(app, a, &retarget_auto_sized);
   const std::string& out_dir = a.out_dir;

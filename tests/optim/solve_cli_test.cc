@@ -1,6 +1,7 @@
 // `banmo solve` on bad input: exit status 2, a message naming the file or
 // key, and nothing written.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -12,7 +13,10 @@ namespace banmo {
 namespace {
 
 std::string Fresh(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/banmo_solve_cli_" + name;
+  // The process id: other test processes (parallel ctest, other build
+  // folders) may run the same test at the same time.
+  const std::string dir =
+      ::testing::TempDir() + "/banmo_solve_cli_" + name + "_" + std::to_string(::getpid());
   std::filesystem::remove_all(dir);
   return dir;
 }
@@ -151,6 +155,43 @@ TEST(SolveCommand, StopAfterBatchesWritesACheckpointAndResumes) {
   EXPECT_NE(resumed.out.find("1 stage(s)"), std::string::npos) << resumed.out;
   EXPECT_NE(read(dir + "/out/config.yaml").find("\nseed: 3\n"), std::string::npos);
   EXPECT_EQ(testing::RunBanmo(solve + " --resume --stop-after-batches -1").exit_code, 2);
+}
+
+TEST(SolveCommand, ResumeBeforeTheFirstCheckpointStartsAgain) {
+  // A solve killed before its first checkpoint leaves config.yaml and
+  // holdout.yaml (and maybe a partial checkpoint.tmp/): --resume starts it
+  // again with the seed and --holdout-every they record, and ends with the
+  // parameters of the uninterrupted solve, byte for byte.
+  const std::string dir = Fresh("restart");
+  const auto s =
+      testing::RunBanmo("synth --videos 1 --frames 6 --size 32 --gaps 1 --out " + dir + "/data");
+  ASSERT_EQ(s.exit_code, 0) << s.out;
+  std::ofstream(dir + "/two.yaml")
+      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
+      << "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
+         "stages: [{name: one, batches: 2}]\n";
+  const std::string solve = "solve --data " + dir + "/data --config " + dir + "/two.yaml --out ";
+  const std::string flags = " --no-extract --no-eval --holdout-every 3";
+  const auto whole = testing::RunBanmo(solve + dir + "/whole --seed 5" + flags);
+  ASSERT_EQ(whole.exit_code, 0) << whole.out;
+  // What the kill left: the two files of the start and an empty staging folder.
+  namespace fs = std::filesystem;
+  fs::create_directories(dir + "/killed/checkpoint.tmp");
+  fs::copy_file(dir + "/whole/config.yaml", dir + "/killed/config.yaml");
+  fs::copy_file(dir + "/whole/holdout.yaml", dir + "/killed/holdout.yaml");
+  const auto resumed = testing::RunBanmo(solve + dir + "/killed --no-extract --no-eval --resume");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.out;
+  EXPECT_NE(resumed.out.find("has no checkpoint yet"), std::string::npos) << resumed.out;
+  EXPECT_NE(resumed.out.find("(seed 5)"), std::string::npos) << resumed.out;
+  EXPECT_NE(resumed.out.find("held out (1 in 3"), std::string::npos) << resumed.out;
+  auto read = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string params = read(dir + "/whole/checkpoint/params.bin");
+  ASSERT_FALSE(params.empty());
+  EXPECT_EQ(read(dir + "/killed/checkpoint/params.bin"), params);
+  fs::remove_all(dir);
 }
 
 TEST(SolveCommand, HelpListsTheOptions) {
