@@ -34,6 +34,19 @@ testing::CommandResult SolveOneBatch(const std::string& dir, const std::string& 
                            ".yaml --out " + dir + "/" + name + " --no-extract --quiet");
 }
 
+// dir/data: a one-video synthetic scene of `frames` 32 px frames; dir/NAME.yaml:
+// a tiny model's config of one stage of `batches` batches.
+bool WriteTinyScene(const std::string& dir, int frames, const std::string& name, int batches) {
+  const auto s = testing::RunBanmo("synth --videos 1 --frames " + std::to_string(frames) +
+                                   " --size 32 --gaps 1 --out " + dir + "/data");
+  EXPECT_EQ(s.exit_code, 0) << s.out;
+  std::ofstream(dir + "/" + name + ".yaml")
+      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
+      << "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
+      << "stages: [{name: one, batches: " << batches << "}]\n";
+  return s.exit_code == 0;
+}
+
 TEST(SolveCommand, UnknownConfigKeyIsAnErrorNamingItAndWritesNothing) {
   const std::string dir = Fresh("key");
   std::filesystem::create_directories(dir);
@@ -120,13 +133,7 @@ TEST(SolveCommand, RootInitRegistrationRegistersAPreparedVideoWithoutPoses) {
 // a checkpoint at batch 2 and the resume command; --resume finishes it.
 TEST(SolveCommand, StopAfterBatchesWritesACheckpointAndResumes) {
   const std::string dir = Fresh("stop");
-  const auto s =
-      testing::RunBanmo("synth --videos 1 --frames 4 --size 32 --gaps 1 --out " + dir + "/data");
-  ASSERT_EQ(s.exit_code, 0) << s.out;
-  std::ofstream(dir + "/three.yaml")
-      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
-      << "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
-         "stages: [{name: one, batches: 3}]\n";
+  ASSERT_TRUE(WriteTinyScene(dir, 4, "three", 3));
   const std::string solve = "solve --data " + dir + "/data --config " + dir + "/three.yaml --out " +
                             dir + "/out --no-extract --no-eval";
   const auto stopped = testing::RunBanmo(solve + " --seed 3 --stop-after-batches 2");
@@ -163,13 +170,7 @@ TEST(SolveCommand, ResumeBeforeTheFirstCheckpointStartsAgain) {
   // again with the seed and --holdout-every they record, and ends with the
   // parameters of the uninterrupted solve, byte for byte.
   const std::string dir = Fresh("restart");
-  const auto s =
-      testing::RunBanmo("synth --videos 1 --frames 6 --size 32 --gaps 1 --out " + dir + "/data");
-  ASSERT_EQ(s.exit_code, 0) << s.out;
-  std::ofstream(dir + "/two.yaml")
-      << "model:\n  num_bones: 2\n  field: {sdf_width: 8, color_width: 8, embedding_width: 8}\n"
-      << "defaults: {batch_rays: 16, samples_per_ray: 4, sampling: {flow_gaps: [1]}}\n"
-         "stages: [{name: one, batches: 2}]\n";
+  ASSERT_TRUE(WriteTinyScene(dir, 6, "two", 2));
   const std::string solve = "solve --data " + dir + "/data --config " + dir + "/two.yaml --out ";
   const std::string flags = " --no-extract --no-eval --holdout-every 3";
   const auto whole = testing::RunBanmo(solve + dir + "/whole --seed 5" + flags);
