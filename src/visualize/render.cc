@@ -130,7 +130,7 @@ RenderedFrame RenderFrame(const Model& model, const ObservedFrame& observed,
   };
   // The pixels whose rays are evaluated, with their [near, far] (clipped to
   // the box with clip_to_box). A ray is skipped when it misses both the
-  // render's box and the box the solver sampled in (RaysMissBox).
+  // render's box and the box the solver sampled in (RenderHitBox).
   const Eigen::AlignedBox3d hit_box = RenderHitBox(model, options.canonical_bounds);
   std::vector<int> pixels;
   std::vector<Eigen::Vector2d> pixel_ranges;
