@@ -345,172 +345,141 @@ void LossSection(const CsvTable& losses, const std::string& solve_dir, Page* pag
   }
 }
 
-ReportSummary BuildReport(const ReportOptions& options,
-                          const std::function<void(const std::string&)>& progress) {
-  Timer total;
-  const auto say = [&](const std::string& line) {
-    if (progress) progress(line);
-  };
-  const RunFolders f = FindRunFolders(options.run_dir, options.data_dir);
-  const std::string out = (fs::path(f.run) / "report").string();
-  const std::string tmp = out + ".tmp";
-  std::error_code ec;
-  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) {
-    ThrowInputError(out, ": exists and is not a folder");
-  }
-  CheckpointInfo info;
-  const std::unique_ptr<Model> model = LoadCheckpoint(f.solve + "/checkpoint", &info);
-  Dataset dataset;
-  if (!f.data.empty()) {
-    LoadOptions load;
-    load.load_features = false;
-    dataset = LoadDataset(f.data, load);
-    CheckDatasetMatchesModel(dataset, *model, f.data);
-  }
-  say("report: solve folder " + f.solve + ", dataset " + (f.data.empty() ? "none" : f.data) +
-      "; writing " + out);
-  fs::remove_all(tmp, ec);
-  MakeDirectories(tmp);
-
-  ReportSummary summary;
-  Page page;
-  std::ostringstream& os = page.body;
-
-  // The viewer: export (no Draco: a wasm decoder does not load from file://).
+// The viewer section: the model exported to tmp/model.glb (no Draco: a wasm
+// decoder does not load from file://), base64 in tmp/model.js, and its HTML;
+// a note instead when three.js or the export is missing.
+std::string ViewerSection(const ReportOptions& options, const Model& model, const std::string& tmp,
+                          Page* page, ReportSummary* summary,
+                          const std::function<void(const std::string&)>& say) {
   std::string viewer_html;
-  {
-    Timer timer;
-    std::string why_not = CopyThree(options.three_dir, tmp);
-    if (why_not.empty()) {
-      try {
-        GltfExportOptions eo;
-        eo.extract.grid.resolution = options.export_resolution;
-        const Eigen::AlignedBox3d box = ExtractionBounds(*model);
-        eo.extract.grid.bounds_min = box.min();
-        eo.extract.grid.bounds_max = box.max();
-        eo.fps = options.fps;
-        const GltfExportSummary s = ExportGltf(*model, eo, tmp + "/model.glb");
-        std::ostringstream js;
-        js << "// banmo report: the exported model (model.glb) as base64, so the page opens "
-              "from file://\n";
-        js << "var BANMO_MODEL_INFO = {fps: " << options.fps << ", bones: " << s.joints
-           << ", vertices: " << s.vertices << "};\n";
-        js << "var BANMO_BONE_PALETTE = [";
-        for (int b = 0; b < std::max(1, model->num_bones()); ++b) {
-          const auto c = BonePaletteColor(b);
-          js << (b ? "," : "") << "[" << int{c[0]} << "," << int{c[1]} << "," << int{c[2]} << "]";
-        }
-        js << "];\nvar BANMO_MODEL_GLB = \"" << Base64(ReadFileText(tmp + "/model.glb")) << "\";\n";
-        WriteFileAtomic(tmp + "/model.js", js.str());
-        WriteFileAtomic(tmp + "/viewer.js", ReportViewerScript());
-        summary.export_seconds = timer.Seconds();
-        char line[256];
-        std::snprintf(line, sizeof(line),
-                      "export: model.glb %.0f KB, %d vertices, %d joints, %d animations (%.1f s)",
-                      s.bytes / 1024.0, s.vertices, s.joints, s.animations, summary.export_seconds);
-        say(line);
-        std::ostringstream v;
-        v << "<h2 id=\"model\">The model</h2>\n<p class=\"note\">The exported animated glTF (<a "
-             "href=\"model.glb\">model.glb</a>: "
-          << s.vertices << " vertices, " << s.joints << " joints, one animation per video at "
-          << options.fps
-          << " keys/s; docs/export.md). Drag to orbit, wheel to zoom; the camera starts at "
-             "video 0's camera and follows the object.</p>\n"
-          << "<div id=\"viewer-controls\"><button id=\"viewer-play\">play</button>"
-             "<label>animation <select id=\"viewer-anim\"></select></label>"
-             "<input id=\"viewer-time\" type=\"range\" min=\"0\" max=\"1\" step=\"0.01\" "
-             "value=\"0\"><span id=\"viewer-time-label\"></span>"
-             "<label><input id=\"viewer-bones\" type=\"checkbox\"> bones</label>"
-             "<label><input id=\"viewer-weights\" type=\"checkbox\"> skinning weights "
-             "(dominant bone)</label></div>\n"
-          << "<div id=\"viewer\"></div><p id=\"viewer-status\">loading the viewer ...</p>\n";
-        viewer_html = v.str();
-      } catch (const InputError& e) {
-        why_not = std::string("export failed: ") + e.what();
+  Timer timer;
+  std::string why_not = CopyThree(options.three_dir, tmp);
+  if (why_not.empty()) {
+    try {
+      GltfExportOptions eo;
+      eo.extract.grid.resolution = options.export_resolution;
+      const Eigen::AlignedBox3d box = ExtractionBounds(model);
+      eo.extract.grid.bounds_min = box.min();
+      eo.extract.grid.bounds_max = box.max();
+      eo.fps = options.fps;
+      const GltfExportSummary s = ExportGltf(model, eo, tmp + "/model.glb");
+      std::ostringstream js;
+      js << "// banmo report: the exported model (model.glb) as base64, so the page opens "
+            "from file://\n";
+      js << "var BANMO_MODEL_INFO = {fps: " << options.fps << ", bones: " << s.joints
+         << ", vertices: " << s.vertices << "};\n";
+      js << "var BANMO_BONE_PALETTE = [";
+      for (int b = 0; b < std::max(1, model.num_bones()); ++b) {
+        const auto c = BonePaletteColor(b);
+        js << (b ? "," : "") << "[" << int{c[0]} << "," << int{c[1]} << "," << int{c[2]} << "]";
       }
-    }
-    if (!why_not.empty()) {
-      page.Skip("3D viewer: " + why_not);
-      say("viewer skipped: " + why_not);
-      viewer_html = "<h2 id=\"model\">The model</h2>\n<p class=\"note\">viewer skipped: " +
-                    HtmlEscape(why_not) + "</p>\n";
+      js << "];\nvar BANMO_MODEL_GLB = \"" << Base64(ReadFileText(tmp + "/model.glb")) << "\";\n";
+      WriteFileAtomic(tmp + "/model.js", js.str());
+      WriteFileAtomic(tmp + "/viewer.js", ReportViewerScript());
+      summary->export_seconds = timer.Seconds();
+      char line[256];
+      std::snprintf(line, sizeof(line),
+                    "export: model.glb %.0f KB, %d vertices, %d joints, %d animations (%.1f s)",
+                    s.bytes / 1024.0, s.vertices, s.joints, s.animations, summary->export_seconds);
+      say(line);
+      std::ostringstream v;
+      v << "<h2 id=\"model\">The model</h2>\n<p class=\"note\">The exported animated glTF (<a "
+           "href=\"model.glb\">model.glb</a>: "
+        << s.vertices << " vertices, " << s.joints << " joints, one animation per video at "
+        << options.fps
+        << " keys/s; docs/export.md). Drag to orbit, wheel to zoom; the camera starts at "
+           "video 0's camera and follows the object.</p>\n"
+        << "<div id=\"viewer-controls\"><button id=\"viewer-play\">play</button>"
+           "<label>animation <select id=\"viewer-anim\"></select></label>"
+           "<input id=\"viewer-time\" type=\"range\" min=\"0\" max=\"1\" step=\"0.01\" "
+           "value=\"0\"><span id=\"viewer-time-label\"></span>"
+           "<label><input id=\"viewer-bones\" type=\"checkbox\"> bones</label>"
+           "<label><input id=\"viewer-weights\" type=\"checkbox\"> skinning weights "
+           "(dominant bone)</label></div>\n"
+        << "<div id=\"viewer\"></div><p id=\"viewer-status\">loading the viewer ...</p>\n";
+      viewer_html = v.str();
+    } catch (const InputError& e) {
+      why_not = std::string("export failed: ") + e.what();
     }
   }
+  if (!why_not.empty()) {
+    page->Skip("3D viewer: " + why_not);
+    say("viewer skipped: " + why_not);
+    viewer_html = "<h2 id=\"model\">The model</h2>\n<p class=\"note\">viewer skipped: " +
+                  HtmlEscape(why_not) + "</p>\n";
+  }
+  return viewer_html;
+}
 
-  // Pictures: banmo render's panels and turntable for a few frames per video.
-  SequenceSummary rendered;
-  bool have_render = false;
-  RenderSequenceOptions ro;
-  if (f.data.empty()) {
-    page.Skip(
+// Pictures: banmo render's panels and turntable for a few frames per video,
+// into tmp/render. False (and a note) when there is no dataset or no frame.
+bool RenderPictures(const ReportOptions& options, const Model& model, const Dataset& dataset,
+                    const std::string& data_dir, const std::string& tmp, Page* page,
+                    ReportSummary* summary, RenderSequenceOptions* ro, SequenceSummary* rendered,
+                    const std::function<void(const std::string&)>& say) {
+  if (data_dir.empty()) {
+    page->Skip(
         "pictures and mask IoU: no dataset found (RUN/data or the solve folder's ../data; "
         "give --data)");
-  } else if (options.frames_per_video == 0) {
-    page.Skip("pictures and mask IoU: --frames-per-video 0");
-  } else {
-    std::vector<std::pair<int, int>> frames;
-    for (int v = 0; v < model->num_videos(); ++v) {
-      for (const int t :
-           EvenFrames(static_cast<int>(model->video(v).frames.size()), options.frames_per_video)) {
-        frames.emplace_back(v, t);
-      }
-    }
-    SetTrainedSampling(*model, &ro.frame);
-    ro.frame.jitter_passes = options.jitter_passes;
-    int height = 1;
-    for (int v = 0; v < model->num_videos(); ++v) {
-      height = std::max(height, model->video(v).camera.height);
-    }
-    ro.scale = std::max(1, (256 + height - 1) / height);
-    ro.turntable_views = options.turntable_views;
-    ro.Check();
-    ro.frame.canonical_bounds = CanonicalBoundsFromSurface(*model);
-    say("render: " + std::to_string(frames.size()) + " frames (" +
-        std::to_string(options.frames_per_video) + " per video), " +
-        std::to_string(ro.frame.samples_per_ray) + " samples per ray, " +
-        std::to_string(ro.frame.jitter_passes) + " jittered passes, turntable " +
-        std::to_string(ro.turntable_views) + " views");
-    Timer timer;
-    rendered = RenderSequence(
-        *model, dataset, frames, ro, tmp + "/render", [&](const FrameReport& r, int done, int all) {
-          char line[200];
-          std::snprintf(line, sizeof(line),
-                        "  [%d/%d] video %d frame %d: IoU %s, rgb error %s (%.1f s)", done, all,
-                        r.video, r.frame, Num(r.errors.mask_iou).c_str(), Num(r.errors.rgb).c_str(),
-                        r.total_seconds);
-          say(line);
-        });
-    summary.render_seconds = timer.Seconds();
-    have_render = true;
-    say("render: done in " + Num(summary.render_seconds, "%.1f") + " s");
+    return false;
   }
+  if (options.frames_per_video == 0) {
+    page->Skip("pictures and mask IoU: --frames-per-video 0");
+    return false;
+  }
+  std::vector<std::pair<int, int>> frames;
+  for (int v = 0; v < model.num_videos(); ++v) {
+    for (const int t :
+         EvenFrames(static_cast<int>(model.video(v).frames.size()), options.frames_per_video)) {
+      frames.emplace_back(v, t);
+    }
+  }
+  SetTrainedSampling(model, &ro->frame);
+  ro->frame.jitter_passes = options.jitter_passes;
+  int height = 1;
+  for (int v = 0; v < model.num_videos(); ++v) {
+    height = std::max(height, model.video(v).camera.height);
+  }
+  ro->scale = std::max(1, (256 + height - 1) / height);
+  ro->turntable_views = options.turntable_views;
+  ro->Check();
+  ro->frame.canonical_bounds = CanonicalBoundsFromSurface(model);
+  say("render: " + std::to_string(frames.size()) + " frames (" +
+      std::to_string(options.frames_per_video) + " per video), " +
+      std::to_string(ro->frame.samples_per_ray) + " samples per ray, " +
+      std::to_string(ro->frame.jitter_passes) + " jittered passes, turntable " +
+      std::to_string(ro->turntable_views) + " views");
+  Timer timer;
+  *rendered = RenderSequence(
+      model, dataset, frames, *ro, tmp + "/render", [&](const FrameReport& r, int done, int all) {
+        char line[200];
+        std::snprintf(line, sizeof(line),
+                      "  [%d/%d] video %d frame %d: IoU %s, rgb error %s (%.1f s)", done, all,
+                      r.video, r.frame, Num(r.errors.mask_iou).c_str(), Num(r.errors.rgb).c_str(),
+                      r.total_seconds);
+        say(line);
+      });
+  summary->render_seconds = timer.Seconds();
+  say("render: done in " + Num(summary->render_seconds, "%.1f") + " s");
+  return true;
+}
 
-  // Files the solve (and eval) wrote.
-  const CsvTable losses = ReadCsv(f.solve + "/losses.csv");
-  const CsvTable stages = ReadCsv(f.solve + "/stages.csv");
-  const nlohmann::json eval = ReadJson(f.solve + "/eval/summary.json", &page.skipped);
-  const CsvTable eval_frames = ReadCsv(f.solve + "/eval/per_frame.csv");
-  const CsvTable root_errors = ReadCsv(f.solve + "/root_pose_errors.csv");
-  std::string holdout_dir = f.solve + "/holdout";
-  if (!fs::exists(holdout_dir + "/summary.json", ec)) holdout_dir = f.run + "/holdout";
-  const nlohmann::json holdout = ReadJson(holdout_dir + "/summary.json", &page.skipped);
-  const CsvTable holdout_frames = ReadCsv(holdout_dir + "/frames.csv");
-
-  // The page.
-  os << "<h1>banmo report: " << HtmlEscape(f.run) << "</h1>\n";
-  os << "<p class=\"note\"><a href=\"#model\">model</a> | <a href=\"#glance\">at a glance</a> | "
-        "<a href=\"#pictures\">pictures</a> | <a href=\"#plots\">per-frame plots</a> | <a "
-        "href=\"#losses\">loss curves</a> | <a href=\"#skipped\">skipped</a></p>\n";
-  os << viewer_html;
+// "The run at a glance": the model, the dataset, the stages, the
+// evaluation, the root-pose errors and the held-out frames.
+void GlanceSection(const RunFolders& f, const Model& model, const CheckpointInfo& info,
+                   const Dataset& dataset, const CsvTable& stages, const CsvTable& losses,
+                   const nlohmann::json& eval, const CsvTable& root_errors,
+                   const nlohmann::json& holdout, const std::string& holdout_dir, Page* page) {
+  std::ostringstream& os = page->body;
   os << "<h2 id=\"glance\">The run at a glance</h2>\n";
-  os << "<p>Model: " << model->num_videos() << " videos, " << model->num_bones() << " bones, "
-     << EnumName(model->options().density) << " density (beta "
-     << Num(std::exp(*model->log_beta()), "%.4g") << "), scene scale "
-     << Num(model->scene_scale(), "%.4g") << "; checkpoint (" << HtmlEscape(f.solve)
+  os << "<p>Model: " << model.num_videos() << " videos, " << model.num_bones() << " bones, "
+     << EnumName(model.options().density) << " density (beta "
+     << Num(std::exp(*model.log_beta()), "%.4g") << "), scene scale "
+     << Num(model.scene_scale(), "%.4g") << "; checkpoint (" << HtmlEscape(f.solve)
      << "/checkpoint) at stage index " << info.stage << ", batch " << info.batch
      << " (stage index = number of stages: the solve finished).</p>\n";
-  if (!f.data.empty()) DatasetSection(dataset, f.data, &page);
-  StagesSection(f, stages, losses, &page);
+  if (!f.data.empty()) DatasetSection(dataset, f.data, page);
+  StagesSection(f, stages, losses, page);
 
   os << "<h3>Against ground truth</h3>\n";
   if (eval.is_object()) {
@@ -523,8 +492,8 @@ ReportSummary BuildReport(const ReportOptions& options,
     os << "</table>\n<p class=\"note\">" << HtmlEscape(f.solve) << "/eval (docs/eval.md).</p>\n";
   } else {
     os << "<p class=\"note\">no evaluation</p>\n";
-    page.Skip("Chamfer / F-score: no " + f.solve +
-              "/eval/summary.json (no ground-truth meshes in the dataset, or solve --no-eval)");
+    page->Skip("Chamfer / F-score: no " + f.solve +
+               "/eval/summary.json (no ground-truth meshes in the dataset, or solve --no-eval)");
   }
   if (root_errors.exists) {
     double sum = 0, worst = 0;
@@ -541,8 +510,8 @@ ReportSummary BuildReport(const ReportOptions& options,
        << " deg mean, " << Num(worst, "%.2f") << " deg max over " << count
        << " frames (after a global alignment; root_pose_errors.csv).</p>\n";
   } else {
-    page.Skip("root-pose error: no " + f.solve +
-              "/root_pose_errors.csv (no ground-truth root poses in the dataset)");
+    page->Skip("root-pose error: no " + f.solve +
+               "/root_pose_errors.csv (no ground-truth root poses in the dataset)");
   }
   os << "<h3>Held-out frames</h3>\n";
   if (holdout.is_object()) {
@@ -559,11 +528,16 @@ ReportSummary BuildReport(const ReportOptions& options,
        << "/summary.json: frames the solve did not fit (banmo solve --holdout-every).</p>\n";
   } else {
     os << "<p class=\"note\">none</p>\n";
-    page.Skip(
+    page->Skip(
         "held-out mask IoU and PSNR: no holdout/summary.json (solve without "
         "--holdout-every)");
   }
+}
 
+// "Pictures": the rendered panels, error maps and turntable.
+void PicturesSection(bool have_render, const RenderSequenceOptions& ro,
+                     const SequenceSummary& rendered, Page* page) {
+  std::ostringstream& os = page->body;
   os << "<h2 id=\"pictures\">Pictures</h2>\n";
   if (have_render) {
     os << "<p class=\"note\">banmo render's panels (docs/render.md), left to right: input, "
@@ -595,7 +569,13 @@ ReportSummary BuildReport(const ReportOptions& options,
   } else {
     os << "<p class=\"note\">skipped (see below)</p>\n";
   }
+}
 
+// "Per-frame plots" and the loss curves.
+void PlotsSection(const RunFolders& f, const std::string& tmp, bool have_render,
+                  const CsvTable& eval_frames, const CsvTable& root_errors,
+                  const CsvTable& holdout_frames, const CsvTable& losses, Page* page) {
+  std::ostringstream& os = page->body;
   os << "<h2 id=\"plots\">Per-frame plots</h2>\n";
   if (eval_frames.exists) {
     PlotOptions po;
@@ -629,7 +609,69 @@ ReportSummary BuildReport(const ReportOptions& options,
       os << LinePlotSvg(PerVideoSeries(holdout_frames, column, "", true), po);
     }
   }
-  LossSection(losses, f.solve, &page);
+  LossSection(losses, f.solve, page);
+}
+
+ReportSummary BuildReport(const ReportOptions& options,
+                          const std::function<void(const std::string&)>& progress) {
+  Timer total;
+  const auto say = [&](const std::string& line) {
+    if (progress) progress(line);
+  };
+  const RunFolders f = FindRunFolders(options.run_dir, options.data_dir);
+  const std::string out = (fs::path(f.run) / "report").string();
+  const std::string tmp = out + ".tmp";
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) {
+    ThrowInputError(out, ": exists and is not a folder");
+  }
+  CheckpointInfo info;
+  const std::unique_ptr<Model> model = LoadCheckpoint(f.solve + "/checkpoint", &info);
+  Dataset dataset;
+  if (!f.data.empty()) {
+    LoadOptions load;
+    load.load_features = false;
+    dataset = LoadDataset(f.data, load);
+    CheckDatasetMatchesModel(dataset, *model, f.data);
+  }
+  say("report: solve folder " + f.solve + ", dataset " + (f.data.empty() ? "none" : f.data) +
+      "; writing " + out);
+  fs::remove_all(tmp, ec);
+  MakeDirectories(tmp);
+
+  ReportSummary summary;
+  Page page;
+  std::ostringstream& os = page.body;
+
+  const std::string viewer_html = ViewerSection(options, *model, tmp, &page, &summary, say);
+
+  SequenceSummary rendered;
+  RenderSequenceOptions ro;
+  const bool have_render =
+      RenderPictures(options, *model, dataset, f.data, tmp, &page, &summary, &ro, &rendered, say);
+
+  // Files the solve (and eval) wrote.
+  const CsvTable losses = ReadCsv(f.solve + "/losses.csv");
+  const CsvTable stages = ReadCsv(f.solve + "/stages.csv");
+  const nlohmann::json eval = ReadJson(f.solve + "/eval/summary.json", &page.skipped);
+  const CsvTable eval_frames = ReadCsv(f.solve + "/eval/per_frame.csv");
+  const CsvTable root_errors = ReadCsv(f.solve + "/root_pose_errors.csv");
+  std::string holdout_dir = f.solve + "/holdout";
+  if (!fs::exists(holdout_dir + "/summary.json", ec)) holdout_dir = f.run + "/holdout";
+  const nlohmann::json holdout = ReadJson(holdout_dir + "/summary.json", &page.skipped);
+  const CsvTable holdout_frames = ReadCsv(holdout_dir + "/frames.csv");
+
+  // The page.
+  os << "<h1>banmo report: " << HtmlEscape(f.run) << "</h1>\n";
+  os << "<p class=\"note\"><a href=\"#model\">model</a> | <a href=\"#glance\">at a glance</a> | "
+        "<a href=\"#pictures\">pictures</a> | <a href=\"#plots\">per-frame plots</a> | <a "
+        "href=\"#losses\">loss curves</a> | <a href=\"#skipped\">skipped</a></p>\n";
+  os << viewer_html;
+  GlanceSection(f, *model, info, dataset, stages, losses, eval, root_errors, holdout, holdout_dir,
+                &page);
+
+  PicturesSection(have_render, ro, rendered, &page);
+  PlotsSection(f, tmp, have_render, eval_frames, root_errors, holdout_frames, losses, &page);
 
   os << "<h2 id=\"skipped\">Skipped</h2>\n";
   if (page.skipped.empty()) {
