@@ -67,6 +67,43 @@ void PrintCasualSummary(const synth::ScenePlan& plan, const synth::SynthScene& s
   }
 }
 
+// --pose-noise-model and --realism into `options`, with the rules between
+// them and --pose-noise.
+void ResolveSynthModes(const std::string& noise_model, const std::string& realism,
+                       synth::SynthOptions* options) {
+  const std::optional<synth::PoseNoiseModel> model = ParseEnum<synth::PoseNoiseModel>(noise_model);
+  if (!model) {
+    ThrowInputError("--pose-noise-model: unknown model '", noise_model, "' (expected one of ",
+                    EnumChoices<synth::PoseNoiseModel>(), ")");
+  }
+  options->pose_noise_model = *model;
+  if (options->pose_noise_model == synth::PoseNoiseModel::kGaussian) {
+    const synth::GaussianNoisePeak peak = synth::GaussianNoiseMaximum();
+    if (!(options->pose_noise_deg <= peak.mean_angle * 180 / M_PI)) {
+      ThrowInputError("--pose-noise: ", options->pose_noise_deg,
+                      " deg is above the largest mean rotation error the gaussian model reaches, ",
+                      std::floor(peak.mean_angle * 180 / M_PI * 100) / 100,
+                      " deg (at per-axis sigma ", std::round(peak.sigma * 180 / M_PI * 10) / 10,
+                      " deg; a larger sigma wraps more angles past 180 deg and lowers the mean); "
+                      "use --pose-noise-model exact for larger errors");
+    }
+  }
+  const std::optional<synth::Realism> realism_mode = ParseEnum<synth::Realism>(realism);
+  if (!realism_mode) {
+    ThrowInputError("--realism: unknown mode '", realism, "' (expected one of ",
+                    EnumChoices<synth::Realism>(), ")");
+  }
+  options->realism = *realism_mode;
+  if (options->realism == synth::Realism::kCasual &&
+      (options->pose_noise_deg != 0 ||
+       options->pose_noise_model != synth::PoseNoiseModel::kExact)) {
+    ThrowInputError(
+        "--pose-noise/--pose-noise-model: not used with --realism casual (it writes "
+        "no rough root poses: every root_poses_init is the identity at (0, 0, "
+        "--distance))");
+  }
+}
+
 int RunSynth(int argc, char** argv) {
   std::ostringstream rigs;
   for (const auto& n : synth::BuiltinRigNames()) rigs << (rigs.tellp() > 0 ? "|" : "") << n;
@@ -144,36 +181,7 @@ int RunSynth(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   options.flow_gaps = ParseGaps(gaps);
-  const std::optional<synth::PoseNoiseModel> model = ParseEnum<synth::PoseNoiseModel>(noise_model);
-  if (!model) {
-    ThrowInputError("--pose-noise-model: unknown model '", noise_model, "' (expected one of ",
-                    EnumChoices<synth::PoseNoiseModel>(), ")");
-  }
-  options.pose_noise_model = *model;
-  if (options.pose_noise_model == synth::PoseNoiseModel::kGaussian) {
-    const synth::GaussianNoisePeak peak = synth::GaussianNoiseMaximum();
-    if (!(options.pose_noise_deg <= peak.mean_angle * 180 / M_PI)) {
-      ThrowInputError("--pose-noise: ", options.pose_noise_deg,
-                      " deg is above the largest mean rotation error the gaussian model reaches, ",
-                      std::floor(peak.mean_angle * 180 / M_PI * 100) / 100,
-                      " deg (at per-axis sigma ", std::round(peak.sigma * 180 / M_PI * 10) / 10,
-                      " deg; a larger sigma wraps more angles past 180 deg and lowers the mean); "
-                      "use --pose-noise-model exact for larger errors");
-    }
-  }
-  const std::optional<synth::Realism> realism_mode = ParseEnum<synth::Realism>(realism);
-  if (!realism_mode) {
-    ThrowInputError("--realism: unknown mode '", realism, "' (expected one of ",
-                    EnumChoices<synth::Realism>(), ")");
-  }
-  options.realism = *realism_mode;
-  if (options.realism == synth::Realism::kCasual &&
-      (options.pose_noise_deg != 0 || options.pose_noise_model != synth::PoseNoiseModel::kExact)) {
-    ThrowInputError(
-        "--pose-noise/--pose-noise-model: not used with --realism casual (it writes "
-        "no rough root poses: every root_poses_init is the identity at (0, 0, "
-        "--distance))");
-  }
+  ResolveSynthModes(noise_model, realism, &options);
   options.root_offset = tools::ParseVector3Option("--root-offset", root_offset);
   options.Check();
   if (threads < 0) ThrowInputError("--threads: expected >= 0");
