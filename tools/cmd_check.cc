@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <string>
 
+#include "banmo/geometry/se3.h"
 #include "banmo/io/dataset.h"
 #include "banmo/model/scene_scale.h"
 #include "banmo/util/timer.h"
@@ -35,7 +36,8 @@ void PrintNotes(const Dataset& dataset) {
     }
     bool all_same = v.frames.size() > 1;
     for (const Frame& f : v.frames) {
-      all_same = all_same && f.root_pose_init.head<4>() == v.frames[0].root_pose_init.head<4>();
+      all_same =
+          all_same && f.root_pose_init.head<kPoseT>() == v.frames[0].root_pose_init.head<kPoseT>();
     }
     if (all_same) {
       std::printf(
