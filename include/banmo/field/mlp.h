@@ -33,13 +33,22 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include "banmo/util/enum_names.h"
 
 namespace banmo {
 
 enum class Activation {
   kSoftplus,  // (1/beta) log(1 + exp(beta z)), evaluated overflow-free
   kRelu,      // max(z, 0), derivative 0 at z = 0
+};
+
+template <>
+struct EnumNames<Activation> {
+  static constexpr std::pair<Activation, const char*> kNames[] = {
+      {Activation::kSoftplus, "softplus"}, {Activation::kRelu, "relu"}};
 };
 
 struct MlpOptions {
