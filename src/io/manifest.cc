@@ -126,7 +126,8 @@ Eigen::Vector4d ReadIntrinsics(const YamlNode& node, int width, int height) {
   if (!node.IsSequence() || node.size() != 4) node.TypeError("[fx, fy, cx, cy]");
   Eigen::Vector4d k;
   for (int j = 0; j < 4; ++j) k[j] = node[j].As<double>("a finite number");
-  CheckIntrinsics(k, width, height, node.source() + ": key '" + node.path() + "'" + node.LineNote());
+  CheckIntrinsics(k, width, height,
+                  node.source() + ": key '" + node.path() + "'" + node.LineNote());
   return k;
 }
 
@@ -162,8 +163,8 @@ ManifestVideo ReadVideoEntry(const YamlNode& v, const Manifest& m, std::set<std:
     present.Fail("lists 'flow' but flow_gaps is empty");
   }
   if (mv.present.depth && m.depth_encoding == DepthEncoding::kPng16 && m.depth_unit <= 0) {
-    ThrowInputError(v.source(), ": key 'depth_unit' is required with 16-bit PNG depth (",
-                    v.path(), " ('", mv.name, "') has depth)");
+    ThrowInputError(v.source(), ": key 'depth_unit' is required with 16-bit PNG depth (", v.path(),
+                    " ('", mv.name, "') has depth)");
   }
   return mv;
 }
@@ -174,9 +175,8 @@ Manifest ReadManifest(const std::string& path) {
   const YamlNode root = YamlNode::Parse(
       ReadRegularFile(path, kMaxTextFileBytes, " (the manifest; every dataset folder has one)"),
       path);
-  const std::set<std::string> keys = {"format",        "version",        "feature_dim",
-                                      "flow_gaps",     "flow_encoding",  "depth_encoding",
-                                      "depth_unit",    "videos"};
+  const std::set<std::string> keys = {"format",        "version",        "feature_dim", "flow_gaps",
+                                      "flow_encoding", "depth_encoding", "depth_unit",  "videos"};
   root.CheckKeys(keys, YamlNode::ChoicesNote(keys));
   Manifest m;
   ReadHeader(root, &m);

@@ -171,10 +171,10 @@ YamlNode LoadModelYaml(const std::string& dir, const std::string& yaml_path, boo
                     "); read it with the banmo that wrote it, or solve again with this one");
   }
   if (!*legacy) {
-    root.CheckKeys({"format", "parameters", "params_checksum", "scene_scale", "canonical_origin",
-                    "options", "canonical_bounds", "training_sampling", "root_correction",
-                    "videos"},
-                   kUnknownKeyNote);
+    root.CheckKeys(
+        {"format", "parameters", "params_checksum", "scene_scale", "canonical_origin", "options",
+         "canonical_bounds", "training_sampling", "root_correction", "videos"},
+        kUnknownKeyNote);
     if (root["training_sampling"].IsMap()) {
       root["training_sampling"].CheckKeys(
           {"samples_per_ray", "near_far_margin", "importance_depth", "clip_to_box", "clip_margin",
@@ -186,7 +186,8 @@ YamlNode LoadModelYaml(const std::string& dir, const std::string& yaml_path, boo
     }
     for (std::size_t v = 0; v < root["videos"].size(); ++v) {
       const YamlNode video = root["videos"][v];
-      if (video.IsMap()) video.CheckKeys({"frames", "width", "height", "intrinsics"}, kUnknownKeyNote);
+      if (video.IsMap())
+        video.CheckKeys({"frames", "width", "height", "intrinsics"}, kUnknownKeyNote);
     }
   }
   return root;
@@ -255,8 +256,7 @@ void ReadVideos(const YamlNode& root, std::vector<int>* frames,
     // video, sides of at most 16384 px.
     if (count < 0 || count > 100000 || cam.width <= 0 || cam.height <= 0 || cam.width > 16384 ||
         cam.height > 16384 || k.size() != 4) {
-      video.Fail(
-          "expected frames in [0, 100000], width and height in [1, 16384] and 4 intrinsics");
+      video.Fail("expected frames in [0, 100000], width and height in [1, 16384] and 4 intrinsics");
     }
     for (int i = 0; i < 4; ++i) cam.intrinsics[i] = k[i];
     frames->push_back(count);
@@ -323,7 +323,8 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   } else {
     root.ReadRequired("scene_scale", &scene_scale);
   }
-  if (!(scene_scale > 0)) root["scene_scale"].Fail("expected a finite number > 0, got ", scene_scale);
+  if (!(scene_scale > 0))
+    root["scene_scale"].Fail("expected a finite number > 0, got ", scene_scale);
   uint64_t expected_count = 0;
   root.ReadRequired("parameters", &expected_count);
   std::string params_checksum;

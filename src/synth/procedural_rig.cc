@@ -280,7 +280,8 @@ int FindJoint(const std::map<std::string, int>& joint_index, const YamlNode& nod
 
 // One entry of `shapes:`: an ellipsoid or a capsule.
 Shape ReadShape(const std::map<std::string, int>& joint_index, const YamlNode& s) {
-  s.CheckKeys({"joint", "type", "center", "radii", "rotation_deg", "from", "to", "radius", "color"});
+  s.CheckKeys(
+      {"joint", "type", "center", "radii", "rotation_deg", "from", "to", "radius", "color"});
   Shape shape;
   shape.joint = FindJoint(joint_index, s.Required("joint"));
   const std::string type = s.Required("type").As<std::string>();
@@ -320,8 +321,8 @@ std::vector<Shape> ReadShapes(const YamlNode& root, const std::map<std::string, 
 
 // The rest surface: the shapes' smooth union, meshed and projected onto its
 // zero level set, into rig->rest_vertices and rig->faces.
-void MeshShapes(const std::string& source, const std::vector<Shape>& shapes,
-                const MeshSettings& m, Rig* rig) {
+void MeshShapes(const std::string& source, const std::vector<Shape>& shapes, const MeshSettings& m,
+                Rig* rig) {
   const double blend = m.blend_radius, cell_size = m.cell_size;
   auto sdf = [&](const Eigen::Vector3d& p) {
     double d = shapes[0].Sdf(p);

@@ -101,7 +101,8 @@ YamlNode YamlNode::operator[](std::size_t i) const {
 
 YamlNode YamlNode::Required(const std::string& key) const {
   if (!IsMap()) TypeError("a map");
-  if (!Has(key)) ThrowInputError(source(), ": missing key '", Join(path_, key), "'", LineNote(), hint());
+  if (!Has(key))
+    ThrowInputError(source(), ": missing key '", Join(path_, key), "'", LineNote(), hint());
   return (*this)[key];
 }
 
@@ -154,9 +155,9 @@ long long YamlNode::ReadInteger(long long lo, long long hi, const char* expected
 }
 
 void YamlNode::Read(int* value, const char* expected) const {
-  *value = static_cast<int>(ReadInteger(std::numeric_limits<int>::min(),
-                                        std::numeric_limits<int>::max(),
-                                        expected ? expected : "an integer"));
+  *value =
+      static_cast<int>(ReadInteger(std::numeric_limits<int>::min(), std::numeric_limits<int>::max(),
+                                   expected ? expected : "an integer"));
 }
 
 void YamlNode::Read(uint32_t* value, const char* expected) const {
