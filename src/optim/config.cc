@@ -540,19 +540,10 @@ std::string SolverConfigToYaml(const SolverConfig& config) {
 void CheckSolverConfig(const SolverConfig& config, const std::string& source) {
   const Checker c(source);
   const ModelOptions& m = config.model;
-  std::string error;
-  if (!m.field.Check(&error)) {
-    // The field's messages start with the field's name where there is one
-    // ("sdf_width must be > 0", "position_encoding.num_bands ...").
-    std::set<std::string> keys;
-    CanonicalFieldOptions copy = m.field;
-    auto collect = [&keys](const char* key, auto&) { keys.insert(key); };
-    VisitFields(collect, copy);
-    const std::string first = error.substr(0, error.find_first_of(". "));
-    if (keys.count(first)) {
-      ThrowInputError(source, ": model.field.", error);
-    }
-    ThrowInputError(source, ": model.field: ", error);
+  try {
+    m.field.Check("model.field");  // names the key: "model.field.sdf_width must be ..."
+  } catch (const InputError& e) {
+    ThrowInputError(source, ": ", e.what());
   }
   if (m.num_bones < 0 || m.num_bones > 256) {
     c.Fail("model.num_bones", "expected an integer in 0..256, got ", m.num_bones);
