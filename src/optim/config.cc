@@ -1,6 +1,6 @@
 // YAML <-> SolverConfig. Every struct lists its fields once (VisitFields);
-// the reader, the key collector and the writer all walk those lists, so a
-// field is read and written under the same key by construction.
+// the YAML walker's reader and writer (util/yaml.h) both walk those lists,
+// so a field is read and written under the same key by construction.
 #include "banmo/optim/config.h"
 
 #include <algorithm>
@@ -8,7 +8,6 @@
 #include <cstdint>
 #include <map>
 #include <optional>
-#include <set>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -34,10 +33,8 @@ RayLossWeights LossesConfig::RayWeights() const {
 
 // ---- Field lists (keys = field names). ----
 
-// In namespace banmo, where util/yaml.h's walker finds them (by
-// argument-dependent lookup).
-
-// The model section: model/model_options_fields.h.
+// In namespace banmo, where util/yaml.h finds them (argument-dependent
+// lookup). The model section: model/model_options_fields.h.
 
 template <class V>
 void VisitFields(V& v, RobustLossConfig& o) {

@@ -10,6 +10,7 @@
 // (VisitFields(visitor, s), found by argument-dependent lookup), with unknown
 // and repeated keys refused. Every error is an InputError (exit 2):
 //   <source>: key '<path>' (line N): expected <what>, got <what was there>
+//   <source>: <path>: expected one of {a, b}, got 'c' (line N)   (enums)
 //   <source>: unknown key '<path>' (line N)
 //   <source>: missing key '<path>' (line N)
 // YamlWriter is the counterpart: it writes the same field lists back, so a
