@@ -239,7 +239,8 @@ int RunSolve(int argc, char** argv) {
   }
   // Registration and smoothing are deterministic, so a resumed solve gets the
   // same tracks (and the same object centre and scene scale from them).
-  PrepareRootPoseInit(config.model, &dataset, "banmo solve");
+  StdoutLineReporter root_init_reporter("banmo solve");
+  PrepareRootPoseInit(config.model, &dataset, &root_init_reporter);
   // Inputs are valid: only now is anything written.
   MakeDirectories(out_dir);
   WriteFileAtomic(out_dir + "/config.yaml", SolverConfigToYaml(config));

@@ -1,7 +1,5 @@
 #include "solve_outputs.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +15,7 @@
 #include "banmo/util/error.h"
 #include "banmo/util/input_file.h"
 #include "banmo/util/timer.h"
+#include "banmo/util/yaml.h"
 #include "banmo/visualize/holdout.h"
 #include "banmo/visualize/render.h"
 
@@ -61,11 +60,7 @@ int ResolveHoldoutEvery(const std::string& out_dir, bool resume, bool given, int
   const std::string path = out_dir + "/holdout.yaml";
   if (resume && PathExists(path)) {
     int recorded = 0;
-    try {
-      recorded = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes))["every"].as<int>();
-    } catch (const YAML::Exception& e) {
-      ThrowInputError(path, ": expected 'every: N' (an integer), ", e.what());
-    }
+    YamlNode::Load(path).ReadRequired("every", &recorded);
     if (given && every != recorded) {
       ThrowInputError("--holdout-every ", every, " with --resume: ", path,
                       " records the solve's --holdout-every ", recorded,

@@ -122,7 +122,8 @@ int Run(int argc, char** argv) {
   // The root poses `banmo solve` would start from (registered and smoothed
   // as the config says), so the stability cases with rough poses measure
   // what a user's solve does.
-  PrepareRootPoseInit(config.model, &dataset, "banmo_trace");
+  StdoutLineReporter root_init_reporter("banmo_trace");
+  PrepareRootPoseInit(config.model, &dataset, &root_init_reporter);
   std::vector<EvalFrame> eval_frames;
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
     const Video& video = dataset.videos[v];

@@ -6,6 +6,7 @@
 #include <numeric>
 #include <random>
 
+#include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
 
@@ -13,15 +14,8 @@ namespace banmo {
 namespace {
 
 const CanonicalFieldOptions& Checked(const CanonicalFieldOptions& options) {
-  std::string error;
-  CHECK(options.Check(&error)) << "invalid CanonicalFieldOptions: " << error;
+  options.Check();
   return options;
-}
-
-// Writes msg to *error (if not null) and returns false.
-bool Fail(std::string* error, const std::string& msg) {
-  if (error != nullptr) *error = msg;
-  return false;
 }
 
 int ColorInputDimOf(const CanonicalFieldOptions& o) {
@@ -69,45 +63,39 @@ void ChainEncodingTranspose(const Eigen::MatrixXd& dpe_dx, const Eigen::MatrixXd
 
 }  // namespace
 
-bool CanonicalFieldOptions::Check(std::string* error) const {
-  std::string sub;
-  if (!position_encoding.Check(&sub)) return Fail(error, "position_encoding." + sub);
+void CanonicalFieldOptions::Check(const std::string& key) const {
+  position_encoding.Check(key + ".position_encoding");
   if (!position_encoding.include_input) {
-    return Fail(error, "position_encoding.include_input must be true (geometric initialisation)");
+    ThrowInputError(key,
+                    ".position_encoding.include_input must be true (geometric initialisation)");
   }
-  if (use_view_direction && !view_encoding.Check(&sub)) {
-    return Fail(error, "view_encoding." + sub);
-  }
+  if (use_view_direction) view_encoding.Check(key + ".view_encoding");
   // Upper limits bound the memory a model file or config can ask for
   // (docs/robustness.md): 4096 x 4096 weights per layer, 64 layers.
   constexpr int kMaxWidth = 4096, kMaxLayers = 64, kMaxDim = 1024;
-  auto range = [&](const char* key, int v, int lo, int hi) {
-    if (v >= lo && v <= hi) return true;
-    return Fail(error, std::string(key) + " must be in [" + std::to_string(lo) + ", " +
-                           std::to_string(hi) + "], got " + std::to_string(v));
+  auto range = [&](const char* name, int v, int lo, int hi) {
+    if (v < lo || v > hi)
+      ThrowInputError(key, ".", name, " must be in [", lo, ", ", hi, "], got ", v);
   };
-  if (!range("sdf_width", sdf_width, 1, kMaxWidth) ||
-      !range("sdf_layers", sdf_layers, 1, kMaxLayers) ||
-      !range("geometry_feature_dim", geometry_feature_dim, 0, kMaxDim) ||
-      !range("color_width", color_width, 1, kMaxWidth) ||
-      !range("color_layers", color_layers, 0, kMaxLayers) ||
-      !range("appearance_code_dim", appearance_code_dim, 0, kMaxDim) ||
-      !range("embedding_width", embedding_width, 1, kMaxWidth) ||
-      !range("embedding_layers", embedding_layers, 0, kMaxLayers)) {
-    return false;
-  }
+  range("sdf_width", sdf_width, 1, kMaxWidth);
+  range("sdf_layers", sdf_layers, 1, kMaxLayers);
+  range("geometry_feature_dim", geometry_feature_dim, 0, kMaxDim);
+  range("color_width", color_width, 1, kMaxWidth);
+  range("color_layers", color_layers, 0, kMaxLayers);
+  range("appearance_code_dim", appearance_code_dim, 0, kMaxDim);
+  range("embedding_width", embedding_width, 1, kMaxWidth);
+  range("embedding_layers", embedding_layers, 0, kMaxLayers);
   if (!(softplus_beta > 0.0) || !std::isfinite(softplus_beta)) {
-    return Fail(error, "softplus_beta must be finite and > 0");
+    ThrowInputError(key, ".softplus_beta must be finite and > 0");
   }
   if (!(init_sphere_radius > 0.0) || !std::isfinite(init_sphere_radius)) {
-    return Fail(error, "init_sphere_radius must be finite and > 0");
+    ThrowInputError(key, ".init_sphere_radius must be finite and > 0");
   }
   if (ColorInputDimOf(*this) <= 0) {
-    return Fail(error,
-                "the colour MLP has no input: set geometry_feature_dim > 0, "
-                "use_view_direction or appearance_code_dim > 0");
+    ThrowInputError(key,
+                    ": the colour MLP has no input: set geometry_feature_dim > 0, "
+                    "use_view_direction or appearance_code_dim > 0");
   }
-  return true;
 }
 
 CanonicalField::CanonicalField(const CanonicalFieldOptions& options)

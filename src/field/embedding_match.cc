@@ -4,25 +4,17 @@
 #include <flann/flann.hpp>
 #include <numeric>
 
+#include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 
 namespace banmo {
 
-namespace {
-// Writes msg to *error (if not null) and returns false.
-bool Fail(std::string* error, const std::string& msg) {
-  if (error != nullptr) *error = msg;
-  return false;
-}
-}  // namespace
-
-bool EmbeddingMatcherOptions::Check(std::string* error) const {
+void EmbeddingMatcherOptions::Check(const std::string& key) const {
   if (!(temperature > 0.0) || !std::isfinite(temperature)) {
-    return Fail(error, "temperature must be finite and > 0");
+    ThrowInputError(key, ".temperature must be finite and > 0");
   }
-  if (num_kdtrees <= 0) return Fail(error, "num_kdtrees must be > 0");
-  if (checks <= 0) return Fail(error, "checks must be > 0");
-  return true;
+  if (num_kdtrees <= 0) ThrowInputError(key, ".num_kdtrees must be > 0");
+  if (checks <= 0) ThrowInputError(key, ".checks must be > 0");
 }
 
 struct EmbeddingMatcher::Index {
@@ -31,8 +23,7 @@ struct EmbeddingMatcher::Index {
 };
 
 EmbeddingMatcher::EmbeddingMatcher(const EmbeddingMatcherOptions& options) : options_(options) {
-  std::string error;
-  CHECK(options_.Check(&error)) << "invalid EmbeddingMatcherOptions: " << error;
+  options_.Check();
 }
 
 EmbeddingMatcher::~EmbeddingMatcher() = default;

@@ -3,38 +3,29 @@
 #include <algorithm>
 #include <cmath>
 
+#include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
 
 namespace banmo {
 
-namespace {
-// Writes msg to *error (if not null) and returns false.
-bool Fail(std::string* error, const std::string& msg) {
-  if (error != nullptr) *error = msg;
-  return false;
-}
-}  // namespace
-
-bool PositionalEncodingOptions::Check(std::string* error) const {
+void PositionalEncodingOptions::Check(const std::string& key) const {
   // Band L has frequency 2^L: beyond 32 bands a double's sine is noise
   // (and the encoding's width, 6 per band, only costs memory).
   if (num_bands < 0 || num_bands > 32) {
-    return Fail(error, "num_bands must be in [0, 32], got " + std::to_string(num_bands));
+    ThrowInputError(key, ".num_bands must be in [0, 32], got ", num_bands);
   }
   if (!(base_frequency > 0.0) || !std::isfinite(base_frequency)) {
-    return Fail(error, "base_frequency must be finite and > 0");
+    ThrowInputError(key, ".base_frequency must be finite and > 0");
   }
   if (!include_input && num_bands == 0) {
-    return Fail(error, "num_bands must be > 0 when include_input is false (empty encoding)");
+    ThrowInputError(key, ".num_bands must be > 0 when include_input is false (empty encoding)");
   }
-  return true;
 }
 
 PositionalEncoding::PositionalEncoding(const PositionalEncodingOptions& options)
     : options_(options) {
-  std::string error;
-  CHECK(options_.Check(&error)) << "invalid PositionalEncodingOptions: " << error;
+  options_.Check();
   band_weight_.assign(options_.num_bands, 1.0);
   band_frequency_.resize(options_.num_bands);
   for (int l = 0; l < options_.num_bands; ++l) {

@@ -5,6 +5,7 @@
 #include <limits>
 #include <random>
 
+#include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
 
@@ -26,24 +27,18 @@ void CheckGroups(const std::vector<int>& group_begin, int n) {
 
 }  // namespace
 
-bool MlpOptions::Check(std::string* error) const {
-  auto fail = [&](const char* msg) {
-    if (error != nullptr) *error = msg;
-    return false;
-  };
-  if (input_dim <= 0) return fail("input_dim must be > 0");
-  if (output_dim <= 0) return fail("output_dim must be > 0");
-  if (width <= 0) return fail("width must be > 0");
-  if (hidden_layers < 0) return fail("hidden_layers must be >= 0");
+void MlpOptions::Check(const std::string& key) const {
+  if (input_dim <= 0) ThrowInputError(key, ".input_dim must be > 0, got ", input_dim);
+  if (output_dim <= 0) ThrowInputError(key, ".output_dim must be > 0, got ", output_dim);
+  if (width <= 0) ThrowInputError(key, ".width must be > 0, got ", width);
+  if (hidden_layers < 0) ThrowInputError(key, ".hidden_layers must be >= 0, got ", hidden_layers);
   if (!(softplus_beta > 0.0) || !std::isfinite(softplus_beta)) {
-    return fail("softplus_beta must be finite and > 0");
+    ThrowInputError(key, ".softplus_beta must be finite and > 0");
   }
-  return true;
 }
 
 Mlp::Mlp(const MlpOptions& options) : options_(options) {
-  std::string error;
-  CHECK(options_.Check(&error)) << "invalid MlpOptions: " << error;
+  options_.Check();
   dims_.push_back(options_.input_dim);
   for (int h = 0; h < options_.hidden_layers; ++h) dims_.push_back(options_.width);
   dims_.push_back(options_.output_dim);

@@ -10,6 +10,7 @@
 #include "banmo/io/codecs.h"
 #include "banmo/util/error.h"
 #include "banmo/util/input_file.h"
+#include "banmo/util/yaml.h"
 
 namespace banmo::internal {
 namespace {
@@ -19,57 +20,10 @@ constexpr const char* kRequiredData[] = {"rgb", "mask", "root_poses_init"};
 constexpr const char* kOptionalData[] = {"flow",    "features",      "depth",
                                          "gt_mesh", "root_poses_gt", "mask_gt"};
 
-std::string Where(const std::string& path, const YAML::Node& node) {
-  const YAML::Mark mark = node.Mark();
-  if (mark.line < 0) return path;
-  return path + ":" + std::to_string(mark.line + 1);
-}
-
-void CheckKeys(const YAML::Node& map, const std::string& path, const std::string& context,
-               const std::set<std::string>& allowed) {
-  if (!map.IsMap()) ThrowInputError(Where(path, map), ": ", context, " must be a mapping");
-  std::set<std::string> seen;
-  for (const auto& kv : map) {
-    const std::string key = kv.first.Scalar();
-    if (!seen.insert(key).second) {
-      // yaml-cpp keeps the first of repeated keys; which one was meant is unknown.
-      ThrowInputError(Where(path, kv.first), ": duplicate key '", key, "' in ", context);
-    }
-    if (allowed.count(key) == 0) {
-      std::string list;
-      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      ThrowInputError(Where(path, kv.first), ": unknown key '", key, "' in ", context,
-                      " (expected one of: ", list, ")");
-    }
-  }
-}
-
-const YAML::Node Required(const YAML::Node& map, const std::string& key, const std::string& path,
-                          const std::string& context) {
-  const YAML::Node node = map[key];
-  if (!node) ThrowInputError(path, ": missing key '", key, "' in ", context);
-  return node;
-}
-
-template <typename T>
-T As(const YAML::Node& node, const std::string& path, const std::string& key,
-     const char* expected) {
-  try {
-    if (!node.IsScalar()) throw YAML::Exception(node.Mark(), "not a scalar");
-    return node.as<T>();
-  } catch (const YAML::Exception&) {
-    ThrowInputError(Where(path, node), ": key '", key, "': expected ", expected);
-  }
-}
-
 }  // namespace
 
-const char* FlowEncodingName(FlowEncoding e) {
-  return e == FlowEncoding::kKittiPng16 ? "kitti_png16" : "npy";
-}
-const char* DepthEncodingName(DepthEncoding e) {
-  return e == DepthEncoding::kPng16 ? "png16" : "npy";
-}
+const char* FlowEncodingName(FlowEncoding e) { return EnumName(e); }
+const char* DepthEncodingName(DepthEncoding e) { return EnumName(e); }
 
 void CheckVideoName(const std::string& name, const std::string& where) {
   const bool ok =
@@ -97,57 +51,37 @@ void CheckIntrinsics(const Eigen::Vector4d& k, int width, int height, const std:
 
 namespace {
 
-FlowEncoding ReadFlowEncoding(const YAML::Node& node, const std::string& path) {
-  const std::string e = As<std::string>(node, path, "flow_encoding", "kitti_png16 or npy");
-  if (e == "kitti_png16") return FlowEncoding::kKittiPng16;
-  if (e == "npy") return FlowEncoding::kNpy;
-  ThrowInputError(path, ": key 'flow_encoding' is '", e, "', expected kitti_png16 or npy");
-}
-
-DepthEncoding ReadDepthEncoding(const YAML::Node& node, const std::string& path) {
-  const std::string e = As<std::string>(node, path, "depth_encoding", "png16 or npy");
-  if (e == "png16") return DepthEncoding::kPng16;
-  if (e == "npy") return DepthEncoding::kNpy;
-  ThrowInputError(path, ": key 'depth_encoding' is '", e, "', expected png16 or npy");
-}
-
 // The top-level keys other than `videos`.
-void ReadHeader(const YAML::Node& root, const std::string& path, Manifest* m) {
-  const std::string top = "the manifest";
-  const std::string format =
-      As<std::string>(Required(root, "format", path, top), path, "format", "a string");
+void ReadHeader(const YamlNode& root, Manifest* m) {
+  const std::string& path = root.source();
+  const std::string format = root.Required("format").As<std::string>();
   if (format != kFormatName) {
     ThrowInputError(path, ": key 'format' is '", format, "', expected '", kFormatName, "'");
   }
-  m->version = As<int>(Required(root, "version", path, top), path, "version", "an integer");
+  root.ReadRequired("version", &m->version);
   if (m->version != kDatasetFormatVersion) {
     ThrowInputError(path, ": unsupported format version ", m->version, " (this program reads ",
                     kDatasetFormatVersion, ")");
   }
-  m->feature_dim =
-      As<int>(Required(root, "feature_dim", path, top), path, "feature_dim", "an integer");
+  root.ReadRequired("feature_dim", &m->feature_dim);
   if (m->feature_dim != kFeatureDim) {
     ThrowInputError(path, ": key 'feature_dim' is ", m->feature_dim, ", expected ", kFeatureDim);
   }
-  const YAML::Node gaps = Required(root, "flow_gaps", path, top);
-  if (!gaps.IsSequence()) {
-    ThrowInputError(Where(path, gaps), ": key 'flow_gaps': expected a list of positive integers");
-  }
-  for (const auto& g : gaps) {
-    const int gap = As<int>(g, path, "flow_gaps", "a list of positive integers");
-    if (gap <= 0 || gap >= 100000) {
-      ThrowInputError(Where(path, g), ": key 'flow_gaps': gap ", gap, " is not in [1, 99999]");
-    }
+  const YamlNode gaps = root.Required("flow_gaps");
+  if (!gaps.IsSequence()) gaps.TypeError("a list of positive integers");
+  for (std::size_t i = 0; i < gaps.size(); ++i) {
+    const int gap = gaps[i].As<int>("a positive integer");
+    if (gap <= 0 || gap >= 100000) gaps[i].Fail("gap ", gap, " is not in [1, 99999]");
     m->flow_gaps.push_back(gap);
   }
   std::sort(m->flow_gaps.begin(), m->flow_gaps.end());
   if (std::adjacent_find(m->flow_gaps.begin(), m->flow_gaps.end()) != m->flow_gaps.end()) {
-    ThrowInputError(Where(path, gaps), ": key 'flow_gaps': duplicate gap");
+    gaps.Fail("duplicate gap");
   }
-  if (root["flow_encoding"]) m->flow_encoding = ReadFlowEncoding(root["flow_encoding"], path);
-  if (root["depth_encoding"]) m->depth_encoding = ReadDepthEncoding(root["depth_encoding"], path);
-  if (root["depth_unit"]) {
-    m->depth_unit = As<double>(root["depth_unit"], path, "depth_unit", "a positive number");
+  root.ReadIfPresent("flow_encoding", &m->flow_encoding);
+  root.ReadIfPresent("depth_encoding", &m->depth_encoding);
+  if (root.Has("depth_unit")) {
+    m->depth_unit = root["depth_unit"].As<double>("a positive number");
     // 1e-9 .. 1e3 per step of a 16-bit PNG: nanometres to a 65 km range.
     if (!(m->depth_unit >= 1e-9 && m->depth_unit <= 1e3)) {
       ThrowInputError(path, ": key 'depth_unit' is ", m->depth_unit,
@@ -158,29 +92,24 @@ void ReadHeader(const YAML::Node& root, const std::string& path, Manifest* m) {
 }
 
 // The `present` list of a video entry.
-VideoContents ReadPresent(const YAML::Node& present, const std::string& path,
-                          const std::string& vctx) {
-  if (!present.IsSequence()) {
-    ThrowInputError(Where(path, present), ": ", vctx, ".present: expected a list");
-  }
+VideoContents ReadPresent(const YamlNode& present) {
+  if (!present.IsSequence()) present.TypeError("a list");
   std::set<std::string> items;
-  for (const auto& p : present) {
-    const std::string item = As<std::string>(p, path, vctx + ".present", "a list of names");
+  for (std::size_t i = 0; i < present.size(); ++i) {
+    const std::string item = present[i].As<std::string>("a name");
     const bool known = std::any_of(std::begin(kRequiredData), std::end(kRequiredData),
                                    [&](const char* n) { return item == n; }) ||
                        std::any_of(std::begin(kOptionalData), std::end(kOptionalData),
                                    [&](const char* n) { return item == n; });
     if (!known) {
-      ThrowInputError(Where(path, p), ": unknown entry '", item, "' in ", vctx,
-                      ".present (expected rgb, mask, root_poses_init, flow, features, depth, "
-                      "gt_mesh, root_poses_gt, mask_gt)");
+      present[i].Fail("unknown entry '", item,
+                      "' (expected rgb, mask, root_poses_init, flow, features, depth, gt_mesh, "
+                      "root_poses_gt, mask_gt)");
     }
     items.insert(item);
   }
   for (const char* req : kRequiredData) {
-    if (items.count(req) == 0) {
-      ThrowInputError(Where(path, present), ": ", vctx, ".present must list '", req, "'");
-    }
+    if (items.count(req) == 0) present.Fail("must list '", req, "'");
   }
   VideoContents c;
   c.flow = items.count("flow") > 0;
@@ -192,61 +121,50 @@ VideoContents ReadPresent(const YAML::Node& present, const std::string& path,
   return c;
 }
 
-// Entry `i` of `videos`; `names` collects the names seen so far.
-ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::string& path,
-                             const Manifest& m, std::set<std::string>* names) {
-  const std::string ctx = "videos[" + std::to_string(i) + "]";
-  CheckKeys(v, path, ctx,
-            {"name", "frames", "width", "height", "intrinsics", "intrinsics_gt", "present"});
+// [fx, fy, cx, cy] at `node`, checked against the image size.
+Eigen::Vector4d ReadIntrinsics(const YamlNode& node, int width, int height) {
+  if (!node.IsSequence() || node.size() != 4) node.TypeError("[fx, fy, cx, cy]");
+  Eigen::Vector4d k;
+  for (int j = 0; j < 4; ++j) k[j] = node[j].As<double>("a finite number");
+  CheckIntrinsics(k, width, height,
+                  node.source() + ": key '" + node.path() + "'" + node.LineNote());
+  return k;
+}
+
+// Entry `v` of `videos` (a map); `names` collects the names seen so far.
+ManifestVideo ReadVideoEntry(const YamlNode& v, const Manifest& m, std::set<std::string>* names) {
+  const std::set<std::string> keys = {"name",       "frames",        "width",  "height",
+                                      "intrinsics", "intrinsics_gt", "present"};
+  v.CheckKeys(keys, YamlNode::ChoicesNote(keys));
   ManifestVideo mv;
-  mv.name = As<std::string>(Required(v, "name", path, ctx), path, ctx + ".name", "a string");
-  CheckVideoName(mv.name, Where(path, v["name"]));
-  if (!names->insert(mv.name).second) {
-    ThrowInputError(Where(path, v["name"]), ": duplicate video name '", mv.name, "'");
-  }
-  const std::string vctx = ctx + " ('" + mv.name + "')";
-  mv.frames =
-      As<int>(Required(v, "frames", path, vctx), path, vctx + ".frames", "a positive integer");
-  mv.width = As<int>(Required(v, "width", path, vctx), path, vctx + ".width", "a positive integer");
-  mv.height =
-      As<int>(Required(v, "height", path, vctx), path, vctx + ".height", "a positive integer");
+  v.ReadRequired("name", &mv.name);
+  const YamlNode name = v["name"];
+  CheckVideoName(mv.name, name.source() + ": key '" + name.path() + "'" + name.LineNote());
+  if (!names->insert(mv.name).second) name.Fail("duplicate video name '", mv.name, "'");
+  mv.frames = v.Required("frames").As<int>("a positive integer");
+  mv.width = v.Required("width").As<int>("a positive integer");
+  mv.height = v.Required("height").As<int>("a positive integer");
   if (mv.frames <= 0 || mv.frames > 100000) {
-    ThrowInputError(Where(path, v["frames"]), ": ", vctx, ".frames = ", mv.frames,
-                    ", expected 1..100000");
+    v["frames"].Fail(mv.frames, " frames in video '", mv.name, "', expected 1..100000");
   }
   if (mv.width <= 0 || mv.height <= 0 || mv.width > kMaxImageSide || mv.height > kMaxImageSide ||
       static_cast<long>(mv.width) * mv.height > kMaxFramePixels) {
-    ThrowInputError(Where(path, v), ": ", vctx, ": image size ", mv.width, "x", mv.height,
-                    " is beyond the limit (width and height in 1..", kMaxImageSide, ", at most ",
-                    kMaxFramePixels, " pixels; docs/robustness.md)");
+    v.Fail("video '", mv.name, "': image size ", mv.width, "x", mv.height,
+           " is beyond the limit (width and height in 1..", kMaxImageSide, ", at most ",
+           kMaxFramePixels, " pixels; docs/robustness.md)");
   }
-  const YAML::Node k = Required(v, "intrinsics", path, vctx);
-  if (!k.IsSequence() || k.size() != 4) {
-    ThrowInputError(Where(path, k), ": ", vctx, ".intrinsics: expected [fx, fy, cx, cy]");
+  mv.intrinsics = ReadIntrinsics(v.Required("intrinsics"), mv.width, mv.height);
+  if (v.Has("intrinsics_gt")) {
+    mv.intrinsics_gt = ReadIntrinsics(v["intrinsics_gt"], mv.width, mv.height);
   }
-  for (int j = 0; j < 4; ++j) {
-    mv.intrinsics[j] = As<double>(k[j], path, vctx + ".intrinsics", "4 numbers");
-  }
-  CheckIntrinsics(mv.intrinsics, mv.width, mv.height, Where(path, k) + ": " + vctx + ".intrinsics");
-  if (const YAML::Node kg = v["intrinsics_gt"]) {
-    if (!kg.IsSequence() || kg.size() != 4) {
-      ThrowInputError(Where(path, kg), ": ", vctx, ".intrinsics_gt: expected [fx, fy, cx, cy]");
-    }
-    Eigen::Vector4d gt;
-    for (int j = 0; j < 4; ++j)
-      gt[j] = As<double>(kg[j], path, vctx + ".intrinsics_gt", "4 numbers");
-    CheckIntrinsics(gt, mv.width, mv.height, Where(path, kg) + ": " + vctx + ".intrinsics_gt");
-    mv.intrinsics_gt = gt;
-  }
-  const YAML::Node present = Required(v, "present", path, vctx);
-  mv.present = ReadPresent(present, path, vctx);
+  const YamlNode present = v.Required("present");
+  mv.present = ReadPresent(present);
   if (mv.present.flow && m.flow_gaps.empty()) {
-    ThrowInputError(Where(path, present), ": ", vctx,
-                    ".present lists 'flow' but flow_gaps is empty");
+    present.Fail("lists 'flow' but flow_gaps is empty");
   }
   if (mv.present.depth && m.depth_encoding == DepthEncoding::kPng16 && m.depth_unit <= 0) {
-    ThrowInputError(path, ": key 'depth_unit' is required with 16-bit PNG depth (", vctx,
-                    " has depth)");
+    ThrowInputError(v.source(), ": key 'depth_unit' is required with 16-bit PNG depth (", v.path(),
+                    " ('", mv.name, "') has depth)");
   }
   return mv;
 }
@@ -254,33 +172,26 @@ ManifestVideo ReadVideoEntry(const YAML::Node& v, std::size_t i, const std::stri
 }  // namespace
 
 Manifest ReadManifest(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(
-        ReadRegularFile(path, kMaxTextFileBytes, " (the manifest; every dataset folder has one)"));
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(path, ": YAML syntax error at line ", e.mark.line + 1, ": ", e.msg);
-  }
-  const std::string top = "the manifest";
-  CheckKeys(root, path, top,
-            {"format", "version", "feature_dim", "flow_gaps", "flow_encoding", "depth_encoding",
-             "depth_unit", "videos"});
+  const YamlNode root = YamlNode::Parse(
+      ReadRegularFile(path, kMaxTextFileBytes, " (the manifest; every dataset folder has one)"),
+      path);
+  const std::set<std::string> keys = {"format",        "version",        "feature_dim", "flow_gaps",
+                                      "flow_encoding", "depth_encoding", "depth_unit",  "videos"};
+  root.CheckKeys(keys, YamlNode::ChoicesNote(keys));
   Manifest m;
-  ReadHeader(root, path, &m);
-  const YAML::Node videos = Required(root, "videos", path, top);
-  if (!videos.IsSequence() || videos.size() == 0) {
-    ThrowInputError(Where(path, videos), ": key 'videos': expected a non-empty list");
-  }
+  ReadHeader(root, &m);
+  const YamlNode videos = root.Required("videos");
+  if (!videos.IsSequence() || videos.size() == 0) videos.TypeError("a non-empty list");
   std::set<std::string> names;
   long pixels = 0;
   for (std::size_t i = 0; i < videos.size(); ++i) {
-    m.videos.push_back(ReadVideoEntry(videos[i], i, path, m, &names));
+    m.videos.push_back(ReadVideoEntry(videos[i], m, &names));
     const ManifestVideo& mv = m.videos.back();
     pixels += static_cast<long>(mv.frames) * mv.width * mv.height;
     if (pixels > kMaxDatasetPixels) {
-      ThrowInputError(Where(path, videos[i]), ": key 'videos': ", i + 1, " video(s) declare ",
-                      pixels, " pixels (frames x width x height), beyond the limit of ",
-                      kMaxDatasetPixels, " per dataset (docs/robustness.md)");
+      ThrowInputError(path, ": key 'videos': ", i + 1, " video(s) declare ", pixels,
+                      " pixels (frames x width x height), beyond the limit of ", kMaxDatasetPixels,
+                      " per dataset (docs/robustness.md)", videos[i].LineNote());
     }
   }
   return m;

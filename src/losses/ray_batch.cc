@@ -35,7 +35,7 @@ const char* RayBlockName(RayBlock block) {
 
 void RayBatchOptions::Check() const {
   if (match_top_k < 1) ThrowInputError("match_top_k: expected >= 1, got ", match_top_k);
-  if (!matcher.Check()) ThrowInputError("matcher: invalid embedding matcher options");
+  matcher.Check("matcher");
   if (!(skinning_jacobian_cutoff >= 0.0 && skinning_jacobian_cutoff < 1.0)) {
     ThrowInputError("skinning_jacobian_cutoff: expected a number in [0, 1), got ",
                     skinning_jacobian_cutoff);

@@ -11,8 +11,7 @@
 namespace banmo {
 
 void ModelOptions::Check() const {
-  std::string field_error;
-  if (!field.Check(&field_error)) ThrowInputError("model.field.", field_error);
+  field.Check("model.field");
   if (num_bones < 0 || num_bones > 256) {
     ThrowInputError("model.num_bones: expected 0..256, got ", num_bones);
   }

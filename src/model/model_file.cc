@@ -1,19 +1,9 @@
 #include "banmo/model/model_file.h"
 
-#include <yaml-cpp/yaml.h>
-
-#include <cerrno>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
-#include <limits>
-#include <locale>
 #include <optional>
-#include <set>
-#include <sstream>
 #include <vector>
 
 #include "banmo/geometry/box.h"
@@ -24,6 +14,7 @@
 #include "banmo/util/format.h"
 #include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
+#include "banmo/util/yaml.h"
 
 namespace banmo {
 namespace {
@@ -40,293 +31,31 @@ std::string ReadFile(const std::string& path) {
   return ReadRegularFile(path, kMaxInputFileBytes, kWhatToDo);
 }
 
-// ---- ModelOptions as YAML (the field lists of model_options_fields.h). ----
-
-class OptionsWriter {
- public:
-  explicit OptionsWriter(YAML::Emitter* out) : out_(*out) {}
-
-  template <class T>
-  void operator()(const char* key, T& value) {
-    out_ << YAML::Key << key << YAML::Value;
-    Write(value);
-  }
-
-  template <class S>
-  void WriteStruct(S& value) {
-    out_ << YAML::BeginMap;
-    VisitFields(*this, value);
-    out_ << YAML::EndMap;
-  }
-
- private:
-  void Write(int v) { out_ << v; }
-  void Write(uint32_t v) { out_ << v; }
-  void Write(double v) { out_ << FormatDouble(v); }
-  void Write(bool v) { out_ << (v ? "true" : "false"); }
-  void Write(Activation v) { out_ << (v == Activation::kRelu ? "relu" : "softplus"); }
-  void Write(DensityModel v) { out_ << EnumName(v); }
-  void Write(std::optional<double>& v) {
-    if (v) {
-      Write(*v);
-    } else {
-      out_ << "auto";
-    }
-  }
-  void Write(std::vector<double>& v) {
-    out_ << YAML::Flow << YAML::BeginSeq;
-    for (double x : v) Write(x);
-    out_ << YAML::EndSeq;
-  }
-  template <class S>
-  void Write(S& v) {
-    WriteStruct(v);
-  }
-
-  YAML::Emitter& out_;
-};
-
-// Reads the keys present in a map into a struct (absent keys keep their
-// values); an unknown key or a value of the wrong type is an InputError
-// naming `source` and the key path.
-class OptionsReader {
- public:
-  OptionsReader(const std::string& source, std::string path, YAML::Node node)
-      : source_(source), path_(std::move(path)), node_(std::move(node)) {}
-
-  // Reads the node into *value (a struct, number, flag, list...).
-  template <class T>
-  void ReadInto(T* value) {
-    Read(value);
-  }
-
-  template <class S>
-  void ReadStruct(S* value) {
-    if (node_.IsNull()) return;
-    if (!node_.IsMap()) Fail(node_, "a map");
-    std::set<std::string> known;
-    KeyNames names{&known};
-    VisitFields(names, *value);
-    for (auto it = node_.begin(); it != node_.end(); ++it) {
-      const std::string name = it->first.IsScalar() ? it->first.Scalar() : std::string("?");
-      if (!known.count(name)) {
-        ThrowInputError(source_, ": unknown key '", Join(name), "'", kWhatToDo);
-      }
-    }
-    VisitFields(*this, *value);
-  }
-
-  template <class T>
-  void operator()(const char* key, T& value) {
-    const YAML::Node child = node_[key];
-    if (!child.IsDefined()) return;
-    OptionsReader reader(source_, Join(key), child);
-    reader.Read(&value);
-  }
-
- private:
-  struct KeyNames {
-    std::set<std::string>* keys;
-    template <class T>
-    void operator()(const char* key, T&) {
-      keys->insert(key);
-    }
-  };
-
-  std::string Join(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
-
-  [[noreturn]] void Fail(const YAML::Node& node, const std::string& expected) const {
-    ThrowInputError(source_, ": key '", path_, "': expected ", expected, ", got ",
-                    node.IsScalar() ? "'" + node.Scalar() + "'" : std::string("a non-scalar"),
-                    kWhatToDo);
-  }
-
-  // A finite number (classic locale), or false.
-  static bool Number(const YAML::Node& node, double* value) {
-    if (!node.IsScalar()) return false;
-    std::istringstream in(node.Scalar());
-    in.imbue(std::locale::classic());
-    double v = 0.0;
-    in >> v;
-    if (in.fail() || !(in >> std::ws).eof() || !std::isfinite(v)) return false;
-    *value = v;
-    return true;
-  }
-  // Optional sign and decimal digits, in [lo, hi].
-  long long Integer(long long lo, long long hi) const {
-    const std::string s = node_.IsScalar() ? node_.Scalar() : std::string();
-    const std::string expected = "an integer in " + std::to_string(lo) + ".." + std::to_string(hi);
-    const size_t first = (!s.empty() && (s[0] == '+' || s[0] == '-')) ? 1 : 0;
-    if (first == s.size()) Fail(node_, expected);
-    for (size_t i = first; i < s.size(); ++i) {
-      if (s[i] < '0' || s[i] > '9') Fail(node_, expected);
-    }
-    errno = 0;
-    const long long v = std::strtoll(s.c_str(), nullptr, 10);
-    if (errno == ERANGE || v < lo || v > hi) Fail(node_, expected);
-    return v;
-  }
-
-  void Read(int* v) {
-    *v =
-        static_cast<int>(Integer(std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
-  }
-  void Read(uint32_t* v) {
-    *v = static_cast<uint32_t>(Integer(0, std::numeric_limits<uint32_t>::max()));
-  }
-  void Read(uint64_t* v) {
-    *v = static_cast<uint64_t>(Integer(0, std::numeric_limits<long long>::max()));
-  }
-  void Read(double* v) {
-    if (!Number(node_, v)) Fail(node_, "a finite number");
-  }
-  void Read(bool* v) {
-    const std::string s = node_.IsScalar() ? node_.Scalar() : std::string();
-    if (s == "true" || s == "True" || s == "TRUE") {
-      *v = true;
-    } else if (s == "false" || s == "False" || s == "FALSE") {
-      *v = false;
-    } else {
-      Fail(node_, "true or false");
-    }
-  }
-  void Read(std::string* v) {
-    if (!node_.IsScalar()) Fail(node_, "a string");
-    *v = node_.Scalar();
-  }
-  void Read(Activation* v) {
-    const std::string s = node_.IsScalar() ? node_.Scalar() : std::string();
-    if (s == "softplus") {
-      *v = Activation::kSoftplus;
-    } else if (s == "relu") {
-      *v = Activation::kRelu;
-    } else {
-      Fail(node_, "softplus or relu");
-    }
-  }
-  // Absent in files written before the option: those models are VolSDF's
-  // (the struct's default).
-  void Read(DensityModel* v) {
-    const std::optional<DensityModel> d =
-        ParseEnum<DensityModel>(node_.IsScalar() ? node_.Scalar() : std::string());
-    if (!d) Fail(node_, "one of " + EnumChoices<DensityModel>());
-    *v = *d;
-  }
-  void Read(std::optional<double>* v) {
-    if (node_.IsScalar() && node_.Scalar() == "auto") {
-      v->reset();
-      return;
-    }
-    double x = 0.0;
-    if (!Number(node_, &x)) Fail(node_, "auto or a finite number");
-    *v = x;
-  }
-  void Read(std::vector<double>* v) {
-    if (node_.IsNull()) {
-      v->clear();
-      return;
-    }
-    if (!node_.IsSequence()) Fail(node_, "a list of numbers");
-    v->assign(node_.size(), 0.0);
-    for (size_t i = 0; i < node_.size(); ++i) {
-      OptionsReader item(source_, path_ + "[" + std::to_string(i) + "]", node_[i]);
-      item.Read(&(*v)[i]);
-    }
-  }
-  template <class S>
-  void Read(S* v) {
-    ReadStruct(v);
-  }
-
-  const std::string& source_;
-  std::string path_;
-  YAML::Node node_;
-};
+// What an unknown key of model.yaml means.
+constexpr char kUnknownKeyNote[] = " (the file is damaged or from another banmo)";
 
 // ---- model.yaml. ----
-
-// Type tests that are false (instead of throwing) for a missing key's node.
-bool IsMap(const YAML::Node& node) { return node.IsDefined() && node.IsMap(); }
-bool IsSequence(const YAML::Node& node) { return node.IsDefined() && node.IsSequence(); }
-
-// An unknown or repeated key of `map` (written by a newer banmo, or a typo)
-// is an error naming the file and the key: it would otherwise be ignored.
-void CheckKnownKeys(const std::string& source, const std::string& path, const YAML::Node& map,
-                    const std::set<std::string>& known) {
-  std::set<std::string> seen;
-  for (const auto& kv : map) {
-    const std::string key = kv.first.Scalar();
-    if (!known.count(key)) {
-      ThrowInputError(source, ": unknown key '", path, key,
-                      "' (the file is damaged or from "
-                      "another banmo)",
-                      kWhatToDo);
-    }
-    if (!seen.insert(key).second) {
-      ThrowInputError(source, ": duplicate key '", path, key, "' (the file is damaged)", kWhatToDo);
-    }
-  }
-}
-
-// Reads node[key] into *value when the key is present (path names it).
-template <class T>
-void ReadOptional(const std::string& source, const std::string& path, const YAML::Node& node,
-                  const char* key, T* value) {
-  if (!IsMap(node)) return;
-  const YAML::Node child = node[key];
-  if (child.IsDefined()) OptionsReader(source, path + key, child).ReadInto(value);
-}
-
-// Reads node[key], which must be present.
-template <class T>
-void ReadRequired(const std::string& source, const YAML::Node& node, const char* key, T* value) {
-  if (!IsMap(node) || !node[key].IsDefined()) {
-    ThrowInputError(source, ": missing key '", key, "'", kWhatToDo);
-  }
-  OptionsReader(source, key, node[key]).ReadInto(value);
-}
 
 // The ray sampling of the last stage of a legacy checkpoint's solver config
 // text: `defaults:` overridden by the last entry of `stages:`; keys absent
 // from both keep TrainingSampling's defaults (the solver's stage defaults).
 // Not recorded when the text has no stages.
-std::optional<TrainingSampling> LegacyTrainingSampling(const YAML::Node& config,
-                                                       const std::string& source) {
-  if (!IsMap(config)) return std::nullopt;
-  const YAML::Node stages = config["stages"];
-  if (!IsSequence(stages) || stages.size() == 0) return std::nullopt;
+std::optional<TrainingSampling> LegacyTrainingSampling(const YamlNode& config) {
+  const YamlNode stages = config["stages"];
+  if (stages.size() == 0) return std::nullopt;
   TrainingSampling s;
-  const std::string last = "stages[" + std::to_string(stages.size() - 1) + "].";
-  const std::vector<std::pair<std::string, YAML::Node>> layers = {
-      {"defaults.", config["defaults"]}, {last, stages[stages.size() - 1]}};
-  for (const auto& [path, stage] : layers) {
-    if (!IsMap(stage)) continue;
-    ReadOptional(source, path, stage, "samples_per_ray", &s.samples_per_ray);
-    const YAML::Node sampling = stage["sampling"];
-    ReadOptional(source, path + "sampling.", sampling, "near_far_margin", &s.near_far_margin);
-    ReadOptional(source, path + "sampling.", sampling, "importance_depth", &s.importance_depth);
-    ReadOptional(source, path + "sampling.", sampling, "clip_to_box", &s.clip_to_box);
-    ReadOptional(source, path + "sampling.", sampling, "clip_margin", &s.clip_margin);
-    ReadOptional(source, path + "sampling.", sampling, "importance_samples", &s.importance_samples);
-    ReadOptional(source, path + "sampling.", sampling, "min_sdf_sample", &s.min_sdf_sample);
+  for (const YamlNode& stage : {config["defaults"], stages[stages.size() - 1]}) {
+    if (!stage.IsMap()) continue;
+    stage.ReadIfPresent("samples_per_ray", &s.samples_per_ray);
+    const YamlNode sampling = stage["sampling"];
+    sampling.ReadIfPresent("near_far_margin", &s.near_far_margin);
+    sampling.ReadIfPresent("importance_depth", &s.importance_depth);
+    sampling.ReadIfPresent("clip_to_box", &s.clip_to_box);
+    sampling.ReadIfPresent("clip_margin", &s.clip_margin);
+    sampling.ReadIfPresent("importance_samples", &s.importance_samples);
+    sampling.ReadIfPresent("min_sdf_sample", &s.min_sdf_sample);
   }
   return s;
-}
-
-void WriteVector3(YAML::Emitter& out, const Eigen::Vector3d& v) {
-  out << YAML::Flow << YAML::BeginSeq;
-  for (int k = 0; k < 3; ++k) out << FormatDouble(v[k]);
-  out << YAML::EndSeq;
-}
-
-// node[key], 3 numbers.
-Eigen::Vector3d ReadVector3(const std::string& source, const YAML::Node& node, const char* key) {
-  std::vector<double> v;
-  ReadRequired(source, node, key, &v);
-  if (v.size() != 3) {
-    ThrowInputError(source, ": key '", key, "': expected 3 numbers, got ", v.size(), kWhatToDo);
-  }
-  return Eigen::Vector3d(v[0], v[1], v[2]);
 }
 
 }  // namespace
@@ -346,23 +75,19 @@ void WriteModelFiles(const std::string& dir, const Model& model) {
   WriteFileAtomic(dir + "/params.bin", params);
   const std::string params_checksum = ContentChecksum(params);
 
-  ModelOptions options = model.options();  // the field lists take non-const references
   YAML::Emitter out;
+  YamlWriter<> writer(&out);
   out << YAML::BeginMap;
   out << YAML::Key << "format" << YAML::Value << kModelFileFormat;
   out << YAML::Key << "parameters" << YAML::Value << count;
   out << YAML::Key << "params_checksum" << YAML::Value << params_checksum;
   out << YAML::Key << "scene_scale" << YAML::Value << FormatDouble(model.scene_scale());
-  out << YAML::Key << "canonical_origin" << YAML::Value;
-  WriteVector3(out, model.canonical_origin());
-  out << YAML::Key << "options" << YAML::Value;
-  OptionsWriter(&out).WriteStruct(options);
+  writer("canonical_origin", model.canonical_origin());
+  writer("options", model.options());
   if (model.canonical_bounds()) {
     out << YAML::Key << "canonical_bounds" << YAML::Value << YAML::BeginMap;
-    out << YAML::Key << "min" << YAML::Value;
-    WriteVector3(out, model.canonical_bounds()->min());
-    out << YAML::Key << "max" << YAML::Value;
-    WriteVector3(out, model.canonical_bounds()->max());
+    writer("min", model.canonical_bounds()->min());
+    writer("max", model.canonical_bounds()->max());
     out << YAML::EndMap;
   }
   if (model.training_sampling()) {
@@ -426,24 +151,19 @@ void ObjectSideRootCorrections(Model* model) {
 
 // model.yaml of folder `dir` parsed, with its format checked (sets *legacy for
 // the solver's older checkpoint format).
-YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, bool* legacy) {
+YamlNode LoadModelYaml(const std::string& dir, const std::string& yaml_path, bool* legacy) {
   if (!PathExists(yaml_path)) {
     ThrowInputError(dir, ": not a model folder (no model.yaml)", kWhatToDo);
   }
-  YAML::Node root;
-  try {
-    root = YAML::Load(ReadRegularFile(yaml_path, kMaxTextFileBytes, kWhatToDo));
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(yaml_path, ": not valid YAML (", e.what(), "): the file is damaged", kWhatToDo);
-  }
-  if (!IsMap(root)) {
+  const YamlNode root = YamlNode::Load(yaml_path, kWhatToDo);
+  if (!root.IsMap()) {
     ThrowInputError(yaml_path,
                     ": expected a map of keys (format, parameters, ...): the file is "
                     "damaged",
                     kWhatToDo);
   }
   std::string format;
-  ReadRequired(yaml_path, root, "format", &format);
+  root.ReadRequired("format", &format);
   *legacy = format == kLegacyCheckpointFormat;
   if (!*legacy && format != kModelFileFormat) {
     ThrowInputError(yaml_path, ": unknown model format '", format, "' (this banmo reads ",
@@ -451,24 +171,23 @@ YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, b
                     "); read it with the banmo that wrote it, or solve again with this one");
   }
   if (!*legacy) {
-    CheckKnownKeys(
-        yaml_path, "", root,
+    root.CheckKeys(
         {"format", "parameters", "params_checksum", "scene_scale", "canonical_origin", "options",
-         "canonical_bounds", "training_sampling", "root_correction", "videos"});
-    if (IsMap(root["training_sampling"])) {
-      CheckKnownKeys(yaml_path, "training_sampling.", root["training_sampling"],
-                     {"samples_per_ray", "near_far_margin", "importance_depth", "clip_to_box",
-                      "clip_margin", "importance_samples", "min_sdf_sample"});
+         "canonical_bounds", "training_sampling", "root_correction", "videos"},
+        kUnknownKeyNote);
+    if (root["training_sampling"].IsMap()) {
+      root["training_sampling"].CheckKeys(
+          {"samples_per_ray", "near_far_margin", "importance_depth", "clip_to_box", "clip_margin",
+           "importance_samples", "min_sdf_sample"},
+          kUnknownKeyNote);
     }
-    if (IsMap(root["canonical_bounds"])) {
-      CheckKnownKeys(yaml_path, "canonical_bounds.", root["canonical_bounds"], {"min", "max"});
+    if (root["canonical_bounds"].IsMap()) {
+      root["canonical_bounds"].CheckKeys({"min", "max"}, kUnknownKeyNote);
     }
-    if (root["videos"].IsSequence()) {
-      for (std::size_t v = 0; v < root["videos"].size(); ++v) {
-        if (!IsMap(root["videos"][v])) continue;
-        CheckKnownKeys(yaml_path, "videos[" + std::to_string(v) + "].", root["videos"][v],
-                       {"frames", "width", "height", "intrinsics"});
-      }
+    for (std::size_t v = 0; v < root["videos"].size(); ++v) {
+      const YamlNode video = root["videos"][v];
+      if (video.IsMap())
+        video.CheckKeys({"frames", "width", "height", "intrinsics"}, kUnknownKeyNote);
     }
   }
   return root;
@@ -477,88 +196,67 @@ YAML::Node LoadModelYaml(const std::string& dir, const std::string& yaml_path, b
 // The model options and training sampling of a legacy checkpoint: the
 // config's model section, the sizes those of model_size (absent before
 // automatic sizing existed).
-void ReadLegacyOptions(const std::string& yaml_path, const YAML::Node& root, ModelOptions* options,
+void ReadLegacyOptions(const YamlNode& root, ModelOptions* options,
                        std::optional<TrainingSampling>* sampling) {
   std::string config_text;
-  ReadRequired(yaml_path, root, "config", &config_text);
-  const std::string config_source = yaml_path + " (config)";
-  YAML::Node config;
-  try {
-    config = YAML::Load(config_text);
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(config_source, ": not valid YAML (", e.what(), ")", kWhatToDo);
-  }
-  if (IsMap(config) && config["model"].IsDefined()) {
-    OptionsReader(config_source, "model", config["model"]).ReadInto(options);
-  }
-  const YAML::Node size = root["model_size"];
+  root.ReadRequired("config", &config_text);
+  const YamlNode config = YamlNode::Parse(config_text, root.source() + " (config)", kWhatToDo);
+  config.ReadIfPresent("model", options);
+  const YamlNode size = root["model_size"];
   if (size.IsDefined()) {
-    ReadRequired(yaml_path + " (model_size)", size, "num_bones", &options->num_bones);
-    ReadRequired(yaml_path + " (model_size)", size, "sdf_width", &options->field.sdf_width);
-    ReadRequired(yaml_path + " (model_size)", size, "color_width", &options->field.color_width);
+    size.ReadRequired("num_bones", &options->num_bones);
+    size.ReadRequired("sdf_width", &options->field.sdf_width);
+    size.ReadRequired("color_width", &options->field.color_width);
   }
-  *sampling = LegacyTrainingSampling(config, config_source);
+  *sampling = LegacyTrainingSampling(config);
 }
 
 // The model options (key 'options') and the optional training_sampling.
-void ReadOptions(const std::string& yaml_path, const YAML::Node& root, ModelOptions* options,
+void ReadOptions(const YamlNode& root, ModelOptions* options,
                  std::optional<TrainingSampling>* sampling) {
-  const YAML::Node node = root["options"];
-  if (!node.IsDefined()) ThrowInputError(yaml_path, ": missing key 'options'", kWhatToDo);
-  OptionsReader(yaml_path, "options", node).ReadInto(options);
-  const YAML::Node s = root["training_sampling"];
+  root.ReadRequired("options", options);
+  const YamlNode s = root["training_sampling"];
   if (s.IsDefined()) {
     TrainingSampling t;
-    const std::string source = yaml_path + " (training_sampling)";
-    ReadRequired(source, s, "samples_per_ray", &t.samples_per_ray);
-    ReadRequired(source, s, "near_far_margin", &t.near_far_margin);
-    ReadRequired(source, s, "importance_depth", &t.importance_depth);
-    if (s["clip_to_box"].IsDefined()) {
-      ReadRequired(source, s, "clip_to_box", &t.clip_to_box);
-      ReadRequired(source, s, "clip_margin", &t.clip_margin);
+    s.ReadRequired("samples_per_ray", &t.samples_per_ray);
+    s.ReadRequired("near_far_margin", &t.near_far_margin);
+    s.ReadRequired("importance_depth", &t.importance_depth);
+    if (s.Has("clip_to_box")) {
+      s.ReadRequired("clip_to_box", &t.clip_to_box);
+      s.ReadRequired("clip_margin", &t.clip_margin);
     }
-    if (s["importance_samples"].IsDefined()) {
-      ReadRequired(source, s, "importance_samples", &t.importance_samples);
-    }
-    if (s["min_sdf_sample"].IsDefined()) {
-      ReadRequired(source, s, "min_sdf_sample", &t.min_sdf_sample);
-    }
+    s.ReadIfPresent("importance_samples", &t.importance_samples);
+    s.ReadIfPresent("min_sdf_sample", &t.min_sdf_sample);
     // 1024: the stage configuration's limit (docs/robustness.md).
     if (t.samples_per_ray <= 0 || t.samples_per_ray > 1024 || !(t.near_far_margin >= 0) ||
         !(t.clip_margin >= 0) || t.importance_samples < 0 || t.importance_samples > 1024) {
-      ThrowInputError(yaml_path,
-                      ": key 'training_sampling': expected samples_per_ray in [1, 1024], "
-                      "near_far_margin >= 0, clip_margin >= 0 and importance_samples in [0, 1024]",
-                      kWhatToDo);
+      s.Fail(
+          "expected samples_per_ray in [1, 1024], near_far_margin >= 0, clip_margin >= 0 and "
+          "importance_samples in [0, 1024]");
     }
     *sampling = t;
   }
 }
 
 // Frame counts and cameras of the videos (key 'videos').
-void ReadVideos(const std::string& yaml_path, const YAML::Node& root, std::vector<int>* frames,
+void ReadVideos(const YamlNode& root, std::vector<int>* frames,
                 std::vector<PinholeCamera>* cameras) {
-  const YAML::Node videos = root["videos"];
-  if (!IsSequence(videos)) {
-    ThrowInputError(yaml_path, ": key 'videos': expected a list of videos", kWhatToDo);
-  }
+  const YamlNode videos = root["videos"];
+  if (!videos.IsSequence()) videos.TypeError("a list of videos");
   for (size_t v = 0; v < videos.size(); ++v) {
-    const std::string source = yaml_path + " (videos[" + std::to_string(v) + "])";
+    const YamlNode video = videos[v];
     int count = 0;
     PinholeCamera cam;
-    ReadRequired(source, videos[v], "frames", &count);
-    ReadRequired(source, videos[v], "width", &cam.width);
-    ReadRequired(source, videos[v], "height", &cam.height);
+    video.ReadRequired("frames", &count);
+    video.ReadRequired("width", &cam.width);
+    video.ReadRequired("height", &cam.height);
     std::vector<double> k;
-    ReadRequired(source, videos[v], "intrinsics", &k);
+    video.ReadRequired("intrinsics", &k);
     // The dataset format's limits (docs/robustness.md): 100000 frames per
     // video, sides of at most 16384 px.
     if (count < 0 || count > 100000 || cam.width <= 0 || cam.height <= 0 || cam.width > 16384 ||
         cam.height > 16384 || k.size() != 4) {
-      ThrowInputError(source,
-                      ": expected frames in [0, 100000], width and height in [1, 16384] and 4 "
-                      "intrinsics",
-                      kWhatToDo);
+      video.Fail("expected frames in [0, 100000], width and height in [1, 16384] and 4 intrinsics");
     }
     for (int i = 0; i < 4; ++i) cam.intrinsics[i] = k[i];
     frames->push_back(count);
@@ -605,13 +303,13 @@ void ReadParameters(const std::string& dir, const std::string& yaml_path, uint64
 std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
   const std::string yaml_path = dir + "/model.yaml";
   bool legacy = false;
-  const YAML::Node root = LoadModelYaml(dir, yaml_path, &legacy);
+  const YamlNode root = LoadModelYaml(dir, yaml_path, &legacy);
   ModelOptions options;
   std::optional<TrainingSampling> sampling;
   if (legacy) {
-    ReadLegacyOptions(yaml_path, root, &options, &sampling);
+    ReadLegacyOptions(root, &options, &sampling);
   } else {
-    ReadOptions(yaml_path, root, &options, &sampling);
+    ReadOptions(root, &options, &sampling);
   }
   try {
     options.Check();
@@ -621,47 +319,38 @@ std::unique_ptr<Model> ReadModelFilesUnguarded(const std::string& dir) {
 
   double scene_scale = 1.0;  // legacy checkpoints written before the key existed
   if (legacy) {
-    ReadOptional(yaml_path, "", root, "scene_scale", &scene_scale);
+    root.ReadIfPresent("scene_scale", &scene_scale);
   } else {
-    ReadRequired(yaml_path, root, "scene_scale", &scene_scale);
+    root.ReadRequired("scene_scale", &scene_scale);
   }
-  if (!(scene_scale > 0 && std::isfinite(scene_scale))) {
-    ThrowInputError(yaml_path, ": key 'scene_scale': expected a finite number > 0, got ",
-                    scene_scale, kWhatToDo);
-  }
+  if (!(scene_scale > 0))
+    root["scene_scale"].Fail("expected a finite number > 0, got ", scene_scale);
   uint64_t expected_count = 0;
-  ReadRequired(yaml_path, root, "parameters", &expected_count);
+  root.ReadRequired("parameters", &expected_count);
   std::string params_checksum;
-  if (!legacy) ReadOptional(yaml_path, "", root, "params_checksum", &params_checksum);
+  if (!legacy) root.ReadIfPresent("params_checksum", &params_checksum);
   std::string root_correction = "camera";  // files written before the key existed
-  ReadOptional(yaml_path, "", root, "root_correction", &root_correction);
+  root.ReadIfPresent("root_correction", &root_correction);
   if (root_correction != kRootCorrectionObjectSide && root_correction != "camera") {
-    ThrowInputError(yaml_path, ": key 'root_correction': expected '", kRootCorrectionObjectSide,
-                    "' or 'camera', got '", root_correction, "'", kWhatToDo);
+    root["root_correction"].Fail("expected '", kRootCorrectionObjectSide, "' or 'camera', got '",
+                                 root_correction, "'");
   }
 
   std::vector<int> frames;
   std::vector<PinholeCamera> cameras;
-  ReadVideos(yaml_path, root, &frames, &cameras);
+  ReadVideos(root, &frames, &cameras);
   auto model = std::make_unique<Model>(options, frames, cameras);
   model->set_scene_scale(scene_scale);
   if (sampling) model->set_training_sampling(*sampling);
-  if (!legacy && root["canonical_origin"].IsDefined()) {  // zero in files written before it
-    const Eigen::Vector3d c = ReadVector3(yaml_path, root, "canonical_origin");
-    if (!c.allFinite()) {
-      ThrowInputError(yaml_path, ": key 'canonical_origin': expected 3 finite numbers", kWhatToDo);
-    }
-    model->set_canonical_origin(c);
+  if (!legacy && root.Has("canonical_origin")) {  // zero in files written before it
+    model->set_canonical_origin(root["canonical_origin"].As<Eigen::Vector3d>());
   }
-  const YAML::Node bounds = root["canonical_bounds"];
+  const YamlNode bounds = root["canonical_bounds"];
   if (!legacy && bounds.IsDefined()) {
-    const std::string source = yaml_path + " (canonical_bounds)";
-    const Eigen::Vector3d lo = ReadVector3(source, bounds, "min");
-    const Eigen::Vector3d hi = ReadVector3(source, bounds, "max");
-    if (!IsValidBox(Eigen::AlignedBox3d(lo, hi))) {
-      ThrowInputError(source, ": expected finite corners with max > min on every axis", kWhatToDo);
-    }
-    model->set_canonical_bounds(Eigen::AlignedBox3d(lo, hi));
+    const Eigen::AlignedBox3d box(bounds.Required("min").As<Eigen::Vector3d>(),
+                                  bounds.Required("max").As<Eigen::Vector3d>());
+    if (!IsValidBox(box)) bounds.Fail("expected finite corners with max > min on every axis");
+    model->set_canonical_bounds(box);
   }
   ReadParameters(dir, yaml_path, expected_count, params_checksum, model.get());
   if (root_correction != kRootCorrectionObjectSide) ObjectSideRootCorrections(model.get());

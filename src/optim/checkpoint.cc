@@ -12,6 +12,7 @@
 #include "banmo/util/error.h"
 #include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
+#include "banmo/util/yaml.h"
 
 namespace banmo {
 namespace {
@@ -20,6 +21,9 @@ namespace {
 // the same number) still loads.
 constexpr char kCheckpointFormat[] = "banmo-checkpoint-3";
 constexpr char kCheckpointFormatV2[] = "banmo-checkpoint-2";
+
+// What to do when checkpoint.yaml cannot be read.
+constexpr char kDamaged[] = ": the file is damaged; solve again (without --resume)";
 
 std::string ReadFile(const std::string& path) { return ReadRegularFile(path); }
 
@@ -33,24 +37,18 @@ CheckpointInfo ReadInfo(const std::string& dir) {
     expected_format = kLegacyCheckpointFormat;
   }
   CheckpointInfo info;
-  try {
-    const YAML::Node root = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes));
-    const std::string format = root["format"].as<std::string>();
-    const bool known = format == expected_format ||
-                       (expected_format == kCheckpointFormat && format == kCheckpointFormatV2);
-    if (!known) {
-      ThrowInputError(path, ": unknown checkpoint format '", format, "' (expected ",
-                      expected_format,
-                      "); resume with the banmo that wrote it, or solve again with this one");
-    }
-    info.stage = root["stage"].as<int>();
-    // Formats before 3 count the stage's batches under `iteration`.
-    info.batch = root[format == kCheckpointFormat ? "batch" : "iteration"].as<int>();
-    info.config = root["config"].as<std::string>();
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(path, ": missing or malformed key (", e.what(),
-                    "): the file is damaged; solve again (without --resume)");
+  const YamlNode root = YamlNode::Load(path, kDamaged);
+  const std::string format = root.Required("format").As<std::string>();
+  const bool known = format == expected_format ||
+                     (expected_format == kCheckpointFormat && format == kCheckpointFormatV2);
+  if (!known) {
+    ThrowInputError(path, ": unknown checkpoint format '", format, "' (expected ", expected_format,
+                    "); resume with the banmo that wrote it, or solve again with this one");
   }
+  root.ReadRequired("stage", &info.stage);
+  // Formats before 3 count the stage's batches under `iteration`.
+  root.ReadRequired(format == kCheckpointFormat ? "batch" : "iteration", &info.batch);
+  root.ReadRequired("config", &info.config);
   return info;
 }
 
@@ -58,14 +56,9 @@ CheckpointInfo ReadInfo(const std::string& dir) {
 std::string ReadStateChecksum(const std::string& dir) {
   const std::string path = dir + "/checkpoint.yaml";
   if (!PathExists(path)) return "";
-  try {
-    const YAML::Node root = YAML::Load(ReadRegularFile(path, kMaxTextFileBytes));
-    const YAML::Node checksum = root["state_checksum"];
-    return checksum ? checksum.as<std::string>() : "";
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(path, ": malformed key 'state_checksum' (", e.what(),
-                    "): the file is damaged; solve again (without --resume)");
-  }
+  std::string checksum;
+  YamlNode::Load(path, kDamaged).ReadIfPresent("state_checksum", &checksum);
+  return checksum;
 }
 
 }  // namespace
@@ -118,12 +111,10 @@ void SaveCheckpoint(const std::string& final_dir, const Model& model, const Chec
 std::optional<uint32_t> ReadCheckpointSeed(const std::string& dir) {
   const std::string folder = ResolveModelFolder(dir);
   const CheckpointInfo info = ReadInfo(folder);
-  try {
-    if (const YAML::Node seed = YAML::Load(info.config)["seed"]) return seed.as<uint32_t>();
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(folder, "/checkpoint.yaml: its config has a malformed seed (", e.what(),
-                    "): the file is damaged; solve again (without --resume)");
-  }
+  const YamlNode config =
+      YamlNode::Parse(info.config, folder + "/checkpoint.yaml (config)", kDamaged);
+  uint32_t seed = 0;
+  if (config.ReadIfPresent("seed", &seed)) return seed;
   return std::nullopt;
 }
 

@@ -1,23 +1,13 @@
 // YAML <-> SolverConfig. Every struct lists its fields once (VisitFields);
-// the reader, the key collector and the writer all walk those lists, so a
-// field is read and written under the same key by construction.
+// the YAML walker's reader and writer (util/yaml.h) both walk those lists,
+// so a field is read and written under the same key by construction.
 #include "banmo/optim/config.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
-#include <limits>
-#include <locale>
 #include <map>
 #include <optional>
-#include <set>
-#include <sstream>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -27,6 +17,7 @@
 #include "banmo/util/format.h"
 #include "banmo/util/input_file.h"
 #include "banmo/util/logging.h"
+#include "banmo/util/yaml.h"
 
 namespace banmo {
 
@@ -40,11 +31,10 @@ RayLossWeights LossesConfig::RayWeights() const {
   return w;
 }
 
-namespace {
-
 // ---- Field lists (keys = field names). ----
 
-// The model section: model/model_options_fields.h.
+// In namespace banmo, where util/yaml.h finds them (argument-dependent
+// lookup). The model section: model/model_options_fields.h.
 
 template <class V>
 void VisitFields(V& v, RobustLossConfig& o) {
@@ -189,267 +179,9 @@ void VisitFields(V& v, StageConfig& o) {
   v("log_every", o.log_every);
 }
 
+namespace {
+
 // ---- Reading. ----
-
-std::string Join(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
-
-std::string LineOf(const YAML::Node& node) {
-  const YAML::Mark mark = node.Mark();
-  if (mark.is_null()) return "";
-  return " (line " + std::to_string(mark.line + 1) + ")";
-}
-
-std::string Describe(const YAML::Node& node) {
-  if (!node.IsDefined() || node.IsNull()) return "nothing";
-  if (node.IsMap()) return "a map";
-  if (node.IsSequence()) return "a list";
-  return "'" + node.Scalar() + "'";
-}
-
-[[noreturn]] void TypeError(const std::string& source, const std::string& path,
-                            const YAML::Node& node, const std::string& expected) {
-  ThrowInputError(source, ": key '", path, "'", LineOf(node), ": expected ", expected, ", got ",
-                  Describe(node));
-}
-
-// Strict integer: optional sign and decimal digits, in [lo, hi].
-long long ParseInteger(const std::string& source, const std::string& path, const YAML::Node& node,
-                       long long lo, long long hi, const std::string& expected) {
-  if (!node.IsScalar()) TypeError(source, path, node, expected);
-  const std::string& s = node.Scalar();
-  size_t i = (!s.empty() && (s[0] == '+' || s[0] == '-')) ? 1 : 0;
-  if (i == s.size()) TypeError(source, path, node, expected);
-  for (size_t j = i; j < s.size(); ++j) {
-    if (s[j] < '0' || s[j] > '9') TypeError(source, path, node, expected);
-  }
-  errno = 0;
-  char* end = nullptr;
-  const long long value = std::strtoll(s.c_str(), &end, 10);
-  if (errno == ERANGE || value < lo || value > hi) TypeError(source, path, node, expected);
-  return value;
-}
-
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               int* value) {
-  *value = static_cast<int>(ParseInteger(source, path, node, std::numeric_limits<int>::min(),
-                                         std::numeric_limits<int>::max(), "an integer"));
-}
-
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               uint32_t* value) {
-  *value = static_cast<uint32_t>(ParseInteger(
-      source, path, node, 0, std::numeric_limits<uint32_t>::max(), "an integer in 0..4294967295"));
-}
-
-// A scalar holding a finite number (classic locale); false on anything else.
-bool ParseFiniteNumber(const YAML::Node& node, double* value) {
-  if (!node.IsScalar()) return false;
-  std::istringstream in(node.Scalar());
-  in.imbue(std::locale::classic());
-  double v = 0.0;
-  in >> v;
-  if (in.fail() || !(in >> std::ws).eof() || !std::isfinite(v)) return false;
-  *value = v;
-  return true;
-}
-
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               double* value) {
-  if (!ParseFiniteNumber(node, value)) TypeError(source, path, node, "a finite number");
-}
-
-// `auto` (empty) or a number; the checker requires the number to be > 0.
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               std::optional<double>* value) {
-  if (node.IsScalar() && node.Scalar() == "auto") {
-    value->reset();
-    return;
-  }
-  double v = 0.0;
-  if (!ParseFiniteNumber(node, &v)) TypeError(source, path, node, "auto or a finite number > 0");
-  *value = v;
-}
-
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               bool* value) {
-  const std::string& s = node.IsScalar() ? node.Scalar() : std::string();
-  if (s == "true" || s == "True" || s == "TRUE") {
-    *value = true;
-  } else if (s == "false" || s == "False" || s == "FALSE") {
-    *value = false;
-  } else {
-    TypeError(source, path, node, "true or false");
-  }
-}
-
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               std::string* value) {
-  if (!node.IsScalar()) TypeError(source, path, node, "a string");
-  *value = node.Scalar();
-}
-
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               Activation* value) {
-  const std::string& s = node.IsScalar() ? node.Scalar() : std::string();
-  if (s == "softplus") {
-    *value = Activation::kSoftplus;
-  } else if (s == "relu") {
-    *value = Activation::kRelu;
-  } else {
-    TypeError(source, path, node, "softplus or relu");
-  }
-}
-
-// An option enum (util/enum_names.h) by its name.
-template <class E>
-std::enable_if_t<std::is_enum_v<E>> ReadValue(const std::string& source, const std::string& path,
-                                              const YAML::Node& node, E* value) {
-  const std::optional<E> v = node.IsScalar() ? ParseEnum<E>(node.Scalar()) : std::nullopt;
-  if (!v) {
-    ThrowInputError(source, ": ", path, ": expected one of ", EnumChoices<E>(), ", got ",
-                    Describe(node), LineOf(node));
-  }
-  *value = *v;
-}
-
-// A list replaces the default list entirely; an empty value (`key:`) is the
-// empty list.
-template <class T>
-void ReadValue(const std::string& source, const std::string& path, const YAML::Node& node,
-               std::vector<T>* value) {
-  if (node.IsNull()) {
-    value->clear();
-    return;
-  }
-  if (!node.IsSequence()) TypeError(source, path, node, "a list");
-  std::vector<T> out(node.size());
-  for (size_t i = 0; i < node.size(); ++i) {
-    ReadValue(source, path + "[" + std::to_string(i) + "]", node[i], &out[i]);
-  }
-  *value = std::move(out);
-}
-
-// Collects the keys of a struct.
-struct KeyCollector {
-  std::set<std::string> keys;
-  template <class T>
-  void operator()(const char* key, T&) {
-    keys.insert(key);
-  }
-};
-
-template <class S>
-void ReadStruct(const std::string& source, const std::string& path, const YAML::Node& node,
-                S* value);
-
-// Reads the present keys of one map into a struct's fields.
-class FieldReader {
- public:
-  FieldReader(const std::string& source, const std::string& path, const YAML::Node& node)
-      : source_(source), path_(path), node_(node) {}
-
-  template <class T>
-  void operator()(const char* key, T& value) {
-    const YAML::Node child = node_[key];
-    if (!child.IsDefined()) return;
-    Read(Join(path_, key), child, &value);
-  }
-
- private:
-  void Read(const std::string& path, const YAML::Node& node, int* v) {
-    ReadValue(source_, path, node, v);
-  }
-  void Read(const std::string& path, const YAML::Node& node, uint32_t* v) {
-    ReadValue(source_, path, node, v);
-  }
-  void Read(const std::string& path, const YAML::Node& node, double* v) {
-    ReadValue(source_, path, node, v);
-  }
-  void Read(const std::string& path, const YAML::Node& node, std::optional<double>* v) {
-    ReadValue(source_, path, node, v);
-  }
-  void Read(const std::string& path, const YAML::Node& node, bool* v) {
-    ReadValue(source_, path, node, v);
-  }
-  void Read(const std::string& path, const YAML::Node& node, std::string* v) {
-    ReadValue(source_, path, node, v);
-  }
-  void Read(const std::string& path, const YAML::Node& node, Activation* v) {
-    ReadValue(source_, path, node, v);
-  }
-  template <class T>
-  void Read(const std::string& path, const YAML::Node& node, std::vector<T>* v) {
-    ReadValue(source_, path, node, v);
-  }
-  template <class S>
-  void Read(const std::string& path, const YAML::Node& node, S* v) {
-    if constexpr (std::is_enum_v<S>) {
-      ReadValue(source_, path, node, v);
-    } else {
-      ReadStruct(source_, path, node, v);
-    }
-  }
-
-  const std::string& source_;
-  const std::string& path_;
-  const YAML::Node node_;
-};
-
-// Unknown or repeated keys of a map are errors naming the full key path.
-void CheckKeys(const std::string& source, const std::string& path, const YAML::Node& node,
-               const std::set<std::string>& known) {
-  std::set<std::string> seen;
-  for (auto it = node.begin(); it != node.end(); ++it) {
-    const YAML::Node key = it->first;
-    if (!key.IsScalar()) {
-      ThrowInputError(source, ": a key in '", path.empty() ? "(top level)" : path, "'", LineOf(key),
-                      " is not a plain name");
-    }
-    const std::string name = key.Scalar();
-    if (!known.count(name)) {
-      ThrowInputError(source, ": unknown key '", Join(path, name), "'", LineOf(key));
-    }
-    if (!seen.insert(name).second) {
-      ThrowInputError(source, ": duplicate key '", Join(path, name), "'", LineOf(key));
-    }
-  }
-}
-
-// A map over a struct: keys present override the struct's current values
-// (its defaults, or the `defaults:` stage); an empty value keeps them.
-template <class S>
-void ReadStruct(const std::string& source, const std::string& path, const YAML::Node& node,
-                S* value) {
-  if (node.IsNull()) return;
-  if (!node.IsMap()) TypeError(source, path, node, "a map");
-  KeyCollector collector;
-  VisitFields(collector, *value);
-  CheckKeys(source, path, node, collector.keys);
-  FieldReader reader(source, path, node);
-  VisitFields(reader, *value);
-}
-
-// Line (1-based) of every key and list element, by path ("stages[1].adam.lr").
-void CollectLines(const YAML::Node& node, const std::string& path,
-                  std::map<std::string, int>* lines) {
-  if (node.IsMap()) {
-    for (auto it = node.begin(); it != node.end(); ++it) {
-      const YAML::Node key = it->first;
-      if (!key.IsScalar()) continue;
-      const std::string child = Join(path, key.Scalar());
-      if (!key.Mark().is_null()) lines->emplace(child, key.Mark().line + 1);
-      CollectLines(it->second, child, lines);
-    }
-  } else if (node.IsSequence()) {
-    for (size_t i = 0; i < node.size(); ++i) {
-      const std::string child = path + "[" + std::to_string(i) + "]";
-      if (!node[i].Mark().is_null()) lines->emplace(child, node[i].Mark().line + 1);
-      CollectLines(node[i], child, lines);
-    }
-  }
-}
 
 // The line a checked key comes from: the key itself, else the same key in
 // `defaults:` (stage keys inherited from there), else its nearest parent.
@@ -477,92 +209,32 @@ constexpr const char* kOldBatchesKey = "iterations";
 // A stage map (`defaults:` or `stages[i]`) with the deprecated key
 // `iterations` renamed to `batches` (a warning names the key); both keys in
 // one map are an error. Other maps are returned as they are.
-YAML::Node RenameDeprecatedStageKeys(const std::string& source, const std::string& path,
-                                     const YAML::Node& node) {
-  if (!node.IsMap() || !node[kOldBatchesKey]) return node;
-  const std::string old_key = Join(path, kOldBatchesKey);
-  if (node["batches"]) {
-    ThrowInputError(source, ": key '", old_key, "'", LineOf(node[kOldBatchesKey]),
-                    ": the old name of '", Join(path, "batches"),
+YamlNode RenameDeprecatedStageKeys(const YamlNode& node) {
+  if (!node.Has(kOldBatchesKey)) return node;
+  const YamlNode old = node[kOldBatchesKey];
+  if (node.Has("batches")) {
+    ThrowInputError(node.source(), ": key '", old.path(), "'", old.LineNote(),
+                    ": the old name of '", node["batches"].path(),
                     "', which is also given; keep only 'batches'");
   }
-  LOG(WARNING) << source << ": key '" << old_key << "'" << LineOf(node[kOldBatchesKey])
+  LOG(WARNING) << node.source() << ": key '" << old.path() << "'" << old.LineNote()
                << " is deprecated: use 'batches' (the stage's minibatches; 'iterations' now "
                   "only counts solver iterations, e.g. lm.iterations_per_batch)";
   YAML::Node renamed(YAML::NodeType::Map);
-  for (auto it = node.begin(); it != node.end(); ++it) {
-    const bool old = it->first.IsScalar() && it->first.Scalar() == kOldBatchesKey;
-    renamed[old ? YAML::Node("batches") : it->first] = it->second;
+  for (auto it = node.yaml().begin(); it != node.yaml().end(); ++it) {
+    const bool is_old = it->first.IsScalar() && it->first.Scalar() == kOldBatchesKey;
+    renamed[is_old ? YAML::Node("batches") : it->first] = it->second;
   }
-  return renamed;
+  return node.WithNode(renamed);
 }
 
-// ---- Writing. ----
-
-class FieldWriter {
- public:
-  explicit FieldWriter(YAML::Emitter* out) : out_(*out) {}
-
-  template <class T>
-  void operator()(const char* key, T& value) {
-    out_ << YAML::Key << key << YAML::Value;
-    Write(value);
-  }
-
+// Small leaf structs on one line: rgb: {weight: 1, robust: {type: none, scale: 1}}.
+struct ConfigLayout {
   template <class S>
-  void WriteStruct(S& value) {
-    // Small leaf structs on one line: rgb: {weight: 1, robust: {type: none, scale: 1}}.
-    if (std::is_same_v<S, LossConfig> || std::is_same_v<S, RobustLossConfig> ||
-        std::is_same_v<S, PositionalEncodingOptions> ||
-        std::is_same_v<S, BoneRegistrationFinalWeights>) {
-      out_ << YAML::Flow;
-    }
-    out_ << YAML::BeginMap;
-    VisitFields(*this, value);
-    out_ << YAML::EndMap;
-  }
-
- private:
-  void Write(int v) { out_ << v; }
-  void Write(uint32_t v) { out_ << v; }
-  void Write(double v) { out_ << FormatDouble(v); }
-  void Write(std::optional<double>& v) {
-    if (v) {
-      Write(*v);
-    } else {
-      out_ << "auto";
-    }
-  }
-  void Write(bool v) { out_ << (v ? "true" : "false"); }
-  void Write(std::string& v) {
-    // Strings YAML would read as null are quoted; the reader accepts any
-    // other scalar as a string.
-    if (v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL") {
-      out_ << YAML::DoubleQuoted << v;
-    } else {
-      out_ << v;
-    }
-  }
-  void Write(Activation v) { out_ << (v == Activation::kRelu ? "relu" : "softplus"); }
-  template <class T>
-  void Write(std::vector<T>& v) {
-    out_ << YAML::Flow << YAML::BeginSeq;
-    for (auto& x : v) {
-      T copy = x;
-      Write(copy);
-    }
-    out_ << YAML::EndSeq;
-  }
-  template <class S>
-  void Write(S& v) {
-    if constexpr (std::is_enum_v<S>) {
-      out_ << EnumName(v);
-    } else {
-      WriteStruct(v);
-    }
-  }
-
-  YAML::Emitter& out_;
+  static constexpr bool kOneLine =
+      std::is_same_v<S, LossConfig> || std::is_same_v<S, RobustLossConfig> ||
+      std::is_same_v<S, PositionalEncodingOptions> ||
+      std::is_same_v<S, BoneRegistrationFinalWeights>;
 };
 
 // ---- Checking. ----
@@ -808,38 +480,28 @@ SolverConfig LoadSolverConfig(const std::string& path) {
 }
 
 SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(source, ": invalid YAML (line ", e.mark.line + 1, "): ", e.msg);
-  }
-  if (!root.IsDefined() || root.IsNull()) {
+  const YamlNode root = YamlNode::Parse(yaml_text, source);
+  if (root.IsNull()) {
     ThrowInputError(source, ": empty config (expected a map with a 'stages' list)");
   }
-  if (!root.IsMap()) TypeError(source, "(top level)", root, "a map");
-  CheckKeys(source, "", root, {"model", "defaults", "stages", "seed", "threads"});
+  root.CheckKeys({"model", "defaults", "stages", "seed", "threads"});
 
   SolverConfig config;
-  if (root["model"]) ReadStruct(source, "model", root["model"], &config.model);
-  if (root["seed"]) ReadValue(source, "seed", root["seed"], &config.seed);
-  if (root["threads"]) ReadValue(source, "threads", root["threads"], &config.threads);
+  root.ReadIfPresent("model", &config.model);
+  root.ReadIfPresent("seed", &config.seed);
+  root.ReadIfPresent("threads", &config.threads);
 
   StageConfig base;
-  if (root["defaults"]) {
-    ReadStruct(source, "defaults", RenameDeprecatedStageKeys(source, "defaults", root["defaults"]),
-               &base);
-  }
+  if (root.Has("defaults")) RenameDeprecatedStageKeys(root["defaults"]).ReadStruct(&base);
 
-  const YAML::Node stages = root["stages"];
-  if (!stages || stages.IsNull()) {
+  const YamlNode stages = root["stages"];
+  if (stages.IsNull()) {
     ThrowInputError(source, ": key 'stages': expected a non-empty list of stages");
   }
-  if (!stages.IsSequence()) TypeError(source, "stages", stages, "a list of stages");
+  if (!stages.IsSequence()) stages.TypeError("a list of stages");
   for (size_t i = 0; i < stages.size(); ++i) {
     StageConfig stage = base;
-    const std::string path = "stages[" + std::to_string(i) + "]";
-    ReadStruct(source, path, RenameDeprecatedStageKeys(source, path, stages[i]), &stage);
+    RenameDeprecatedStageKeys(stages[i]).ReadStruct(&stage);
     config.stages.push_back(std::move(stage));
   }
   try {
@@ -849,10 +511,8 @@ SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& 
     const std::string message = e.what();
     const size_t begin = source.size() + 2;
     const size_t end = message.find_first_of(": ", begin);
-    std::map<std::string, int> lines;
-    CollectLines(root, "", &lines);
     const int line = message.rfind(source + ": ", 0) == 0 && end != std::string::npos
-                         ? LineOfKey(message.substr(begin, end - begin), lines)
+                         ? LineOfKey(message.substr(begin, end - begin), root.KeyLines())
                          : 0;
     if (line > 0) ThrowInputError(message, " (line ", line, ")");
     throw;
@@ -861,18 +521,14 @@ SolverConfig ParseSolverConfig(const std::string& yaml_text, const std::string& 
 }
 
 std::string SolverConfigToYaml(const SolverConfig& config) {
-  SolverConfig c = config;  // the field lists take non-const references
   YAML::Emitter out;
   out << YAML::Comment("banmo solver config, resolved (every key; see docs/config.md)");
   out << YAML::BeginMap;
-  FieldWriter writer(&out);
-  out << YAML::Key << "model" << YAML::Value;
-  writer.WriteStruct(c.model);
-  out << YAML::Key << "seed" << YAML::Value << c.seed;
-  out << YAML::Key << "threads" << YAML::Value << c.threads;
-  out << YAML::Key << "stages" << YAML::Value << YAML::BeginSeq;
-  for (StageConfig& stage : c.stages) writer.WriteStruct(stage);
-  out << YAML::EndSeq;
+  YamlWriter<ConfigLayout> writer(&out);
+  writer("model", config.model);
+  writer("seed", config.seed);
+  writer("threads", config.threads);
+  writer("stages", config.stages);
   out << YAML::EndMap;
   CHECK(out.good()) << "YAML emitter: " << out.GetLastError();
   return std::string(out.c_str()) + "\n";
@@ -881,18 +537,10 @@ std::string SolverConfigToYaml(const SolverConfig& config) {
 void CheckSolverConfig(const SolverConfig& config, const std::string& source) {
   const Checker c(source);
   const ModelOptions& m = config.model;
-  std::string error;
-  if (!m.field.Check(&error)) {
-    // The field's messages start with the field's name where there is one
-    // ("sdf_width must be > 0", "position_encoding.num_bands ...").
-    KeyCollector keys;
-    CanonicalFieldOptions copy = m.field;
-    VisitFields(keys, copy);
-    const std::string first = error.substr(0, error.find_first_of(". "));
-    if (keys.keys.count(first)) {
-      ThrowInputError(source, ": model.field.", error);
-    }
-    ThrowInputError(source, ": model.field: ", error);
+  try {
+    m.field.Check("model.field");  // names the key: "model.field.sdf_width must be ..."
+  } catch (const InputError& e) {
+    ThrowInputError(source, ": ", e.what());
   }
   if (m.num_bones < 0 || m.num_bones > 256) {
     c.Fail("model.num_bones", "expected an integer in 0..256, got ", m.num_bones);

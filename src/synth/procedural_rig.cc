@@ -1,16 +1,14 @@
 #include "banmo/synth/procedural_rig.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <set>
 #include <unordered_map>
 
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
 #include "banmo/util/parallel.h"
+#include "banmo/util/yaml.h"
 
 namespace banmo::synth {
 
@@ -209,65 +207,6 @@ struct MotionTerm {
   int cycles = 1;
 };
 
-class YamlReader {
- public:
-  explicit YamlReader(std::string source) : source_(std::move(source)) {}
-
-  template <typename... Args>
-  [[noreturn]] void Fail(Args&&... args) const {
-    ThrowInputError(source_, ": ", std::forward<Args>(args)...);
-  }
-
-  // Rejects keys of `node` (a map at `where`) that are not in `allowed`.
-  void CheckKeys(const YAML::Node& node, const std::string& where,
-                 const std::set<std::string>& allowed) const {
-    if (!node.IsMap()) Fail(where, ": expected a map");
-    for (const auto& kv : node) {
-      const std::string key = kv.first.as<std::string>();
-      if (!allowed.count(key)) Fail(where, ": unknown key '", key, "'");
-    }
-  }
-
-  const YAML::Node Required(const YAML::Node& node, const std::string& key,
-                            const std::string& where) const {
-    if (!node[key]) Fail(where, ": missing key '", key, "'");
-    return node[key];
-  }
-
-  double Number(const YAML::Node& node, const std::string& where) const {
-    try {
-      const double v = node.as<double>();
-      if (!std::isfinite(v)) Fail(where, ": expected a finite number");
-      return v;
-    } catch (const YAML::Exception&) {
-      Fail(where, ": expected a number");
-    }
-  }
-
-  double NumberOr(const YAML::Node& parent, const std::string& key, const std::string& where,
-                  double fallback) const {
-    return parent[key] ? Number(parent[key], where + "." + key) : fallback;
-  }
-
-  Eigen::Vector3d Vec3(const YAML::Node& node, const std::string& where) const {
-    if (!node.IsSequence() || node.size() != 3) Fail(where, ": expected a list of 3 numbers");
-    return Eigen::Vector3d(Number(node[0], where), Number(node[1], where), Number(node[2], where));
-  }
-
-  Eigen::Vector3d Vec3Or(const YAML::Node& parent, const std::string& key, const std::string& where,
-                         const Eigen::Vector3d& fallback) const {
-    return parent[key] ? Vec3(parent[key], where + "." + key) : fallback;
-  }
-
-  std::string String(const YAML::Node& node, const std::string& where) const {
-    if (!node.IsScalar()) Fail(where, ": expected a string");
-    return node.as<std::string>();
-  }
-
- private:
-  std::string source_;
-};
-
 // The `mesh:` section: meshing and appearance settings.
 struct MeshSettings {
   double cell_size = 0;
@@ -277,44 +216,44 @@ struct MeshSettings {
   double pattern_strength = 0;
 };
 
-MeshSettings ReadMeshSettings(const YamlReader& r, const YAML::Node& root) {
-  const YAML::Node mesh_node = r.Required(root, "mesh", "top level");
-  r.CheckKeys(mesh_node, "mesh",
-              {"cell_size", "blend_radius", "skin_blend", "pattern_frequency", "pattern_strength"});
+MeshSettings ReadMeshSettings(const YamlNode& root) {
+  const YamlNode mesh = root.Required("mesh");
+  mesh.CheckKeys(
+      {"cell_size", "blend_radius", "skin_blend", "pattern_frequency", "pattern_strength"});
   MeshSettings m;
-  m.cell_size = r.Number(r.Required(mesh_node, "cell_size", "mesh"), "mesh.cell_size");
-  m.blend_radius = r.NumberOr(mesh_node, "blend_radius", "mesh", 0.0);
-  m.skin_blend = r.NumberOr(mesh_node, "skin_blend", "mesh", 0.05);
-  m.pattern_frequency = r.NumberOr(mesh_node, "pattern_frequency", "mesh", 4.0);
-  m.pattern_strength = r.NumberOr(mesh_node, "pattern_strength", "mesh", 0.3);
-  if (!(m.cell_size > 0)) r.Fail("mesh.cell_size: expected > 0");
-  if (m.blend_radius < 0) r.Fail("mesh.blend_radius: expected >= 0");
-  if (!(m.skin_blend > 0)) r.Fail("mesh.skin_blend: expected > 0");
-  if (m.pattern_strength < 0 || m.pattern_strength > 1)
-    r.Fail("mesh.pattern_strength: expected [0, 1]");
+  mesh.ReadRequired("cell_size", &m.cell_size);
+  m.blend_radius = mesh.ValueOr("blend_radius", 0.0);
+  m.skin_blend = mesh.ValueOr("skin_blend", 0.05);
+  m.pattern_frequency = mesh.ValueOr("pattern_frequency", 4.0);
+  m.pattern_strength = mesh.ValueOr("pattern_strength", 0.3);
+  if (!(m.cell_size > 0)) mesh["cell_size"].Fail("expected > 0");
+  if (m.blend_radius < 0) mesh["blend_radius"].Fail("expected >= 0");
+  if (!(m.skin_blend > 0)) mesh["skin_blend"].Fail("expected > 0");
+  if (m.pattern_strength < 0 || m.pattern_strength > 1) {
+    mesh["pattern_strength"].Fail("expected [0, 1]");
+  }
   return m;
 }
 
 // The `joints:` section: one node and one influence per joint (rest positions
 // in rig space, identity rest rotations). Returns the joint index by name.
-std::map<std::string, int> ReadJoints(const YamlReader& r, const YAML::Node& root, Rig* rig) {
-  const YAML::Node joints = r.Required(root, "joints", "top level");
-  if (!joints.IsSequence() || joints.size() == 0) r.Fail("joints: expected a non-empty list");
+std::map<std::string, int> ReadJoints(const YamlNode& root, Rig* rig) {
+  const YamlNode joints = root.Required("joints");
+  if (joints.size() == 0) joints.TypeError("a non-empty list");
   std::map<std::string, int> joint_index;
   std::vector<Eigen::Vector3d> joint_position;
   for (size_t i = 0; i < joints.size(); ++i) {
-    const std::string where = "joints[" + std::to_string(i) + "]";
-    r.CheckKeys(joints[i], where, {"name", "parent", "position"});
+    const YamlNode joint = joints[i];
+    joint.CheckKeys({"name", "parent", "position"});
     RigNode node;
-    node.name = r.String(r.Required(joints[i], "name", where), where + ".name");
-    if (joint_index.count(node.name)) r.Fail(where, ": duplicate joint name '", node.name, "'");
-    const Eigen::Vector3d pos =
-        r.Vec3(r.Required(joints[i], "position", where), where + ".position");
-    if (joints[i]["parent"] && !joints[i]["parent"].IsNull()) {
-      const std::string parent = r.String(joints[i]["parent"], where + ".parent");
+    joint.ReadRequired("name", &node.name);
+    if (joint_index.count(node.name)) joint.Fail("duplicate joint name '", node.name, "'");
+    const Eigen::Vector3d pos = joint.Required("position").As<Eigen::Vector3d>();
+    if (!joint["parent"].IsNull()) {
+      const std::string parent = joint["parent"].As<std::string>();
       auto it = joint_index.find(parent);
       if (it == joint_index.end()) {
-        r.Fail(where, ".parent: unknown joint '", parent, "' (parents must come first)");
+        joint["parent"].Fail("unknown joint '", parent, "' (parents must come first)");
       }
       node.parent = it->second;
       node.translation = pos - joint_position[node.parent];
@@ -332,64 +271,57 @@ std::map<std::string, int> ReadJoints(const YamlReader& r, const YAML::Node& roo
   return joint_index;
 }
 
-int FindJoint(const YamlReader& r, const std::map<std::string, int>& joint_index,
-              const YAML::Node& node, const std::string& where) {
-  const std::string name = r.String(node, where);
+int FindJoint(const std::map<std::string, int>& joint_index, const YamlNode& node) {
+  const std::string name = node.As<std::string>();
   auto it = joint_index.find(name);
-  if (it == joint_index.end()) r.Fail(where, ": unknown joint '", name, "'");
+  if (it == joint_index.end()) node.Fail("unknown joint '", name, "'");
   return it->second;
 }
 
-// One entry of `shapes:` (at `where`): an ellipsoid or a capsule.
-Shape ReadShape(const YamlReader& r, const std::map<std::string, int>& joint_index,
-                const YAML::Node& s, const std::string& where) {
-  r.CheckKeys(
-      s, where,
+// One entry of `shapes:`: an ellipsoid or a capsule.
+Shape ReadShape(const std::map<std::string, int>& joint_index, const YamlNode& s) {
+  s.CheckKeys(
       {"joint", "type", "center", "radii", "rotation_deg", "from", "to", "radius", "color"});
   Shape shape;
-  shape.joint = FindJoint(r, joint_index, r.Required(s, "joint", where), where + ".joint");
-  const std::string type = r.String(r.Required(s, "type", where), where + ".type");
+  shape.joint = FindJoint(joint_index, s.Required("joint"));
+  const std::string type = s.Required("type").As<std::string>();
   if (type == "ellipsoid") {
-    shape.center = r.Vec3(r.Required(s, "center", where), where + ".center");
-    shape.radii = r.Vec3(r.Required(s, "radii", where), where + ".radii");
-    if (!(shape.radii.minCoeff() > 0)) r.Fail(where, ".radii: expected positive radii");
+    s.ReadRequired("center", &shape.center);
+    s.ReadRequired("radii", &shape.radii);
+    if (!(shape.radii.minCoeff() > 0)) s["radii"].Fail("expected positive radii");
     const Eigen::Vector3d euler =
-        r.Vec3Or(s, "rotation_deg", where, Eigen::Vector3d::Zero()) * M_PI / 180;
+        s.ValueOr("rotation_deg", Eigen::Vector3d(Eigen::Vector3d::Zero())) * M_PI / 180;
     shape.axes = (Eigen::AngleAxisd(euler[2], Eigen::Vector3d::UnitZ()) *
                   Eigen::AngleAxisd(euler[1], Eigen::Vector3d::UnitY()) *
                   Eigen::AngleAxisd(euler[0], Eigen::Vector3d::UnitX()))
                      .toRotationMatrix();
   } else if (type == "capsule") {
     shape.capsule = true;
-    shape.from = r.Vec3(r.Required(s, "from", where), where + ".from");
-    shape.to = r.Vec3(r.Required(s, "to", where), where + ".to");
-    shape.radius = r.Number(r.Required(s, "radius", where), where + ".radius");
-    if (!(shape.radius > 0)) r.Fail(where, ".radius: expected > 0");
+    s.ReadRequired("from", &shape.from);
+    s.ReadRequired("to", &shape.to);
+    s.ReadRequired("radius", &shape.radius);
+    if (!(shape.radius > 0)) s["radius"].Fail("expected > 0");
   } else {
-    r.Fail(where, ".type: expected 'ellipsoid' or 'capsule', found '", type, "'");
+    s["type"].Fail("expected 'ellipsoid' or 'capsule', found '", type, "'");
   }
-  shape.color = r.Vec3Or(s, "color", where, shape.color);
-  if (shape.color.minCoeff() < 0 || shape.color.maxCoeff() > 1)
-    r.Fail(where, ".color: expected values in [0, 1]");
+  s.ReadIfPresent("color", &shape.color);
+  if (shape.color.minCoeff() < 0 || shape.color.maxCoeff() > 1) {
+    s["color"].Fail("expected values in [0, 1]");
+  }
   return shape;
 }
 
-std::vector<Shape> ReadShapes(const YamlReader& r, const YAML::Node& root,
-                              const std::map<std::string, int>& joint_index) {
-  const YAML::Node shapes_node = r.Required(root, "shapes", "top level");
-  if (!shapes_node.IsSequence() || shapes_node.size() == 0)
-    r.Fail("shapes: expected a non-empty list");
+std::vector<Shape> ReadShapes(const YamlNode& root, const std::map<std::string, int>& joint_index) {
+  const YamlNode list = root.Required("shapes");
+  if (list.size() == 0) list.TypeError("a non-empty list");
   std::vector<Shape> shapes;
-  for (size_t i = 0; i < shapes_node.size(); ++i) {
-    shapes.push_back(
-        ReadShape(r, joint_index, shapes_node[i], "shapes[" + std::to_string(i) + "]"));
-  }
+  for (size_t i = 0; i < list.size(); ++i) shapes.push_back(ReadShape(joint_index, list[i]));
   return shapes;
 }
 
 // The rest surface: the shapes' smooth union, meshed and projected onto its
 // zero level set, into rig->rest_vertices and rig->faces.
-void MeshShapes(const YamlReader& r, const std::vector<Shape>& shapes, const MeshSettings& m,
+void MeshShapes(const std::string& source, const std::vector<Shape>& shapes, const MeshSettings& m,
                 Rig* rig) {
   const double blend = m.blend_radius, cell_size = m.cell_size;
   auto sdf = [&](const Eigen::Vector3d& p) {
@@ -401,9 +333,11 @@ void MeshShapes(const YamlReader& r, const std::vector<Shape>& shapes, const Mes
   for (const auto& s : shapes) lo = lo.cwiseMin(s.Lo()), hi = hi.cwiseMax(s.Hi());
   const Eigen::Vector3d margin = Eigen::Vector3d::Constant(2 * cell_size + blend);
   const double cells = ((hi - lo + 2 * margin) / cell_size).prod();
-  if (cells > 4e7) r.Fail("mesh.cell_size: too small for the shapes (", cells, " grid cells)");
+  if (cells > 4e7) {
+    ThrowInputError(source, ": mesh.cell_size: too small for the shapes (", cells, " grid cells)");
+  }
   TriangleMesh surface = MeshLevelSet(sdf, lo - margin, hi + margin, cell_size);
-  if (surface.NumFaces() == 0) r.Fail("the shapes produce an empty surface");
+  if (surface.NumFaces() == 0) ThrowInputError(source, ": the shapes produce an empty surface");
   rig->rest_vertices = surface.vertices;
   rig->faces = surface.faces;
 }
@@ -483,32 +417,30 @@ void SkinAndColour(const std::vector<Shape>& shapes, const MeshSettings& m, Rig*
   rig->materials.push_back(RigMaterial{});
 }
 
-// One entry of `animation.channels:` (at `where`).
-MotionTerm ReadMotionTerm(const YamlReader& r, const std::map<std::string, int>& joint_index,
-                          const YAML::Node& c, const std::string& where) {
-  r.CheckKeys(c, where,
-              {"joint", "axis", "offset_deg", "amplitude_deg", "translation", "translation_offset",
+// One entry of `animation.channels:`.
+MotionTerm ReadMotionTerm(const std::map<std::string, int>& joint_index, const YamlNode& c) {
+  c.CheckKeys({"joint", "axis", "offset_deg", "amplitude_deg", "translation", "translation_offset",
                "phase", "cycles"});
   MotionTerm t;
-  t.joint = FindJoint(r, joint_index, r.Required(c, "joint", where), where + ".joint");
-  t.phase = r.NumberOr(c, "phase", where, 0);
-  const double cycles = r.NumberOr(c, "cycles", where, 1);
+  t.joint = FindJoint(joint_index, c.Required("joint"));
+  t.phase = c.ValueOr("phase", 0.0);
+  const double cycles = c.ValueOr("cycles", 1.0);
   t.cycles = static_cast<int>(cycles);
-  if (t.cycles < 1 || t.cycles != cycles)
-    r.Fail(where, ".cycles: expected an integer >= 1 (loops)");
-  const bool has_rot = c["axis"] || c["amplitude_deg"] || c["offset_deg"];
-  const bool has_trans = c["translation"] || c["translation_offset"];
-  if (has_rot == has_trans) r.Fail(where, ": expected either axis/amplitude_deg or translation");
+  if (t.cycles < 1 || t.cycles != cycles) c["cycles"].Fail("expected an integer >= 1 (loops)");
+  const bool has_rot = c.Has("axis") || c.Has("amplitude_deg") || c.Has("offset_deg");
+  const bool has_trans = c.Has("translation") || c.Has("translation_offset");
+  if (has_rot == has_trans) c.Fail("expected either axis/amplitude_deg or translation");
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
   if (has_rot) {
-    t.axis = r.Vec3(r.Required(c, "axis", where), where + ".axis");
-    if (!(t.axis.norm() > 0)) r.Fail(where, ".axis: expected a non-zero vector");
+    c.ReadRequired("axis", &t.axis);
+    if (!(t.axis.norm() > 0)) c["axis"].Fail("expected a non-zero vector");
     t.axis.normalize();
-    t.offset = r.NumberOr(c, "offset_deg", where, 0) * M_PI / 180;
-    t.amplitude = r.NumberOr(c, "amplitude_deg", where, 0) * M_PI / 180;
+    t.offset = c.ValueOr("offset_deg", 0.0) * M_PI / 180;
+    t.amplitude = c.ValueOr("amplitude_deg", 0.0) * M_PI / 180;
   } else {
     t.rotation = false;
-    t.amplitude_t = r.Vec3Or(c, "translation", where, Eigen::Vector3d::Zero());
-    t.offset_t = r.Vec3Or(c, "translation_offset", where, Eigen::Vector3d::Zero());
+    t.amplitude_t = c.ValueOr("translation", zero);
+    t.offset_t = c.ValueOr("translation_offset", zero);
   }
   return t;
 }
@@ -553,52 +485,45 @@ void SampleJointChannels(const std::vector<MotionTerm>& terms, const RigNode& no
 }
 
 // The `animation:` section: sinusoidal motion terms sampled into keyframes.
-Animation ReadAnimation(const YamlReader& r, const YAML::Node& root,
-                        const std::map<std::string, int>& joint_index, const Rig& rig) {
-  const YAML::Node anim = r.Required(root, "animation", "top level");
-  r.CheckKeys(anim, "animation", {"name", "duration", "keys", "channels"});
+Animation ReadAnimation(const YamlNode& root, const std::map<std::string, int>& joint_index,
+                        const Rig& rig) {
+  const YamlNode anim = root.Required("animation");
+  anim.CheckKeys({"name", "duration", "keys", "channels"});
   Animation animation;
-  animation.name = r.String(r.Required(anim, "name", "animation"), "animation.name");
-  const double duration = r.Number(r.Required(anim, "duration", "animation"), "animation.duration");
-  if (!(duration > 0)) r.Fail("animation.duration: expected > 0");
-  const double keys_d = r.NumberOr(anim, "keys", "animation", 60);
+  anim.ReadRequired("name", &animation.name);
+  const double duration = anim.Required("duration").As<double>();
+  if (!(duration > 0)) anim["duration"].Fail("expected > 0");
+  const double keys_d = anim.ValueOr("keys", 60.0);
   const int keys = static_cast<int>(keys_d);
-  if (keys < 2 || keys != keys_d) r.Fail("animation.keys: expected an integer >= 2");
-  const YAML::Node channels = r.Required(anim, "channels", "animation");
-  if (!channels.IsSequence()) r.Fail("animation.channels: expected a list");
+  if (keys < 2 || keys != keys_d) anim["keys"].Fail("expected an integer >= 2");
+  const YamlNode channels = anim.Required("channels");
+  if (!channels.IsSequence()) channels.TypeError("a list");
   std::vector<MotionTerm> terms;
   for (size_t i = 0; i < channels.size(); ++i) {
-    const std::string where = "animation.channels[" + std::to_string(i) + "]";
-    terms.push_back(ReadMotionTerm(r, joint_index, channels[i], where));
+    terms.push_back(ReadMotionTerm(joint_index, channels[i]));
   }
   for (int j = 0; j < static_cast<int>(rig.nodes.size()); ++j) {
     SampleJointChannels(terms, rig.nodes[j], j, duration, keys, &animation);
   }
-  if (animation.channels.empty()) r.Fail("animation.channels: expected at least one channel");
+  if (animation.channels.empty()) channels.Fail("expected at least one channel");
   return animation;
 }
 
 }  // namespace
 
 Rig BuildProceduralRig(const std::string& yaml_text, const std::string& source) {
-  YamlReader r(source);
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    r.Fail("cannot parse YAML: ", e.what());
-  }
-  r.CheckKeys(root, "top level", {"name", "mesh", "joints", "shapes", "animation"});
+  const YamlNode root = YamlNode::Parse(yaml_text, source);
+  root.CheckKeys({"name", "mesh", "joints", "shapes", "animation"});
   Rig rig;
-  rig.name = r.String(r.Required(root, "name", "top level"), "name");
-  const MeshSettings mesh = ReadMeshSettings(r, root);
-  const std::map<std::string, int> joint_index = ReadJoints(r, root, &rig);
-  const std::vector<Shape> shapes = ReadShapes(r, root, joint_index);
-  MeshShapes(r, shapes, mesh, &rig);
+  root.ReadRequired("name", &rig.name);
+  const MeshSettings mesh = ReadMeshSettings(root);
+  const std::map<std::string, int> joint_index = ReadJoints(root, &rig);
+  const std::vector<Shape> shapes = ReadShapes(root, joint_index);
+  MeshShapes(source, shapes, mesh, &rig);
   SkinAndColour(shapes, mesh, &rig);
-  rig.animations.push_back(ReadAnimation(r, root, joint_index, rig));
+  rig.animations.push_back(ReadAnimation(root, joint_index, rig));
   const std::string problem = rig.Validate();
-  if (!problem.empty()) r.Fail(problem);
+  if (!problem.empty()) ThrowInputError(source, ": ", problem);
   return rig;
 }
 

@@ -5,6 +5,7 @@
 #include <random>
 
 #include "banmo/util/dual.h"
+#include "banmo/util/error.h"
 #include "field_test_util.h"
 
 namespace banmo {
@@ -402,25 +403,36 @@ TEST(CanonicalField, GeometricInitIsSphere) {
 }
 
 TEST(CanonicalField, OptionsCheck) {
+  auto error = [](const CanonicalFieldOptions& o) -> std::string {
+    try {
+      o.Check();
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
   CanonicalFieldOptions o;
-  EXPECT_TRUE(o.Check());
+  EXPECT_EQ(error(o), "");
   o.position_encoding.include_input = false;
-  std::string error;
-  EXPECT_FALSE(o.Check(&error));
-  EXPECT_NE(error.find("position_encoding.include_input"), std::string::npos) << error;
+  EXPECT_NE(error(o).find("model.field.position_encoding.include_input"), std::string::npos)
+      << error(o);
   o = CanonicalFieldOptions();
   o.geometry_feature_dim = 0;
   o.use_view_direction = false;
   o.appearance_code_dim = 0;
-  EXPECT_FALSE(o.Check());  // the colour MLP would have no input
+  EXPECT_EQ(error(o).rfind("model.field: the colour MLP has no input", 0), 0u) << error(o);
   o = CanonicalFieldOptions();
   o.init_sphere_radius = 0.0;
-  EXPECT_FALSE(o.Check(&error));
-  EXPECT_NE(error.find("init_sphere_radius"), std::string::npos) << error;
+  EXPECT_NE(error(o).find("model.field.init_sphere_radius"), std::string::npos) << error(o);
   o = CanonicalFieldOptions();
   o.position_encoding.num_bands = -2;
-  EXPECT_FALSE(o.Check(&error));
-  EXPECT_EQ(error, "position_encoding.num_bands must be in [0, 32], got -2");
+  EXPECT_EQ(error(o), "model.field.position_encoding.num_bands must be in [0, 32], got -2");
+  try {
+    o.Check("options.field");  // the model file's key
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("options.field.position_encoding.num_bands", 0), 0u);
+  }
 }
 
 }  // namespace

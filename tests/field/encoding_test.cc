@@ -5,6 +5,7 @@
 #include <random>
 
 #include "banmo/util/dual.h"
+#include "banmo/util/error.h"
 #include "field_test_util.h"
 
 namespace banmo {
@@ -38,7 +39,7 @@ TEST(PositionalEncoding, OutputDimAndLayout) {
   o.include_input = false;
   EXPECT_EQ(PositionalEncoding(o).OutputDim(), 12);
   o.num_bands = -1;
-  EXPECT_FALSE(o.Check());
+  EXPECT_THROW(o.Check(), InputError);
 }
 
 TEST(PositionalEncoding, BatchMatchesSinglePointAndJets) {

@@ -123,7 +123,7 @@ TEST(HostileDataset, DuplicateKeysAndAbsurdDepthUnitAreRefused) {
   WriteText(manifest, text + "feature_dim: 16\n");
   std::string error = TimedLoadError(dir);
   EXPECT_NE(error.find("manifest.yaml"), std::string::npos) << error;
-  EXPECT_NE(error.find("duplicate key 'feature_dim' in the manifest"), std::string::npos) << error;
+  EXPECT_NE(error.find("duplicate key 'feature_dim'"), std::string::npos) << error;
   // Inside a video entry.
   const std::size_t frames = text.find("    frames: ");
   ASSERT_NE(frames, std::string::npos) << text;
@@ -131,7 +131,7 @@ TEST(HostileDataset, DuplicateKeysAndAbsurdDepthUnitAreRefused) {
   video.insert(frames, "    frames: 3\n");
   WriteText(manifest, video);
   error = TimedLoadError(dir);
-  EXPECT_NE(error.find("duplicate key 'frames' in videos[0]"), std::string::npos) << error;
+  EXPECT_NE(error.find("duplicate key 'videos[0].frames'"), std::string::npos) << error;
   // depth_unit 1e308.
   const std::size_t unit = text.find("depth_unit: ");
   ASSERT_NE(unit, std::string::npos) << text;

@@ -226,7 +226,7 @@ TEST(ModelFile, StoresTheCanonicalBoundsAndTrainingSampling) {
   std::string no_max = yaml;
   no_max.erase(max_line, yaml.find('\n', max_line) + 1 - max_line);
   std::ofstream(dir / "model.yaml") << no_max;
-  EXPECT_NE(LoadError(dir).find("(canonical_bounds): missing key 'max'"), std::string::npos)
+  EXPECT_NE(LoadError(dir).find("missing key 'canonical_bounds.max'"), std::string::npos)
       << LoadError(dir);
   model->set_canonical_bounds(
       Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 1)));
@@ -381,7 +381,7 @@ TEST(ModelFile, CorruptFilesNameTheFileAndWhatToDo) {
   const std::vector<Case> cases = {
       {"truncated parameters", "params.bin", params.substr(0, 100), "holds"},
       {"not a parameter file", "params.bin", "hello", "not a banmo parameter file"},
-      {"not YAML", "model.yaml", "format: [unclosed", "not valid YAML"},
+      {"not YAML", "model.yaml", "format: [unclosed", "invalid YAML"},
       {"no format", "model.yaml", no_format, "missing key 'format'"},
       {"bad option", "model.yaml", bad_width, "options.field.sdf_width"},
   };

@@ -226,7 +226,7 @@ TEST(SolverConfig, WrongTypesNameKeyAndExpectedType) {
       {"stages:\n  - constant: sdf\n", {"'stages[0].constant'", "a list"}},
       {"stages:\n  - name: [a]\n", {"'stages[0].name'", "a string"}},
       {"model: {field: {activation: tanh}}\nstages: [{}]\n",
-       {"'model.field.activation'", "softplus or relu", "'tanh'"}},
+       {"model.field.activation: expected one of {softplus, relu}", "'tanh'"}},
       {"seed: -1\nstages: [{}]\n", {"key 'seed' (line 1)", "0..4294967295"}},
       {"threads: two\nstages: [{}]\n", {"key 'threads'", "an integer"}},
       {"stages: {a: 1}\n", {"key 'stages'", "a list of stages"}},

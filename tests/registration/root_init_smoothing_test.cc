@@ -165,8 +165,9 @@ TEST(RootInitSmoothing, EachVideoOfADatasetIsSmoothedOnItsOwn) {
 }
 
 // PrepareRootPoseInit (registration/root_init.h), what `banmo solve` and
-// banmo_trace run before a solve: the same smoothing, a line per step with
-// the prefix, nothing printed without one, and nothing done when disabled.
+// banmo_trace run before a solve: the same smoothing, a line per step
+// reported, nothing printed without a reporter, and nothing done when
+// disabled.
 TEST(RootInitSmoothing, PrepareRootPoseInitSmoothsAsTheSolveDoes) {
   const std::vector<Pose> truth = SmoothTrack(16);
   const std::vector<Pose> noisy = Noisy(truth, 30.0, 7);
@@ -183,17 +184,26 @@ TEST(RootInitSmoothing, PrepareRootPoseInitSmoothsAsTheSolveDoes) {
   ModelOptions options;
   options.root_init_registration.enabled = false;
   options.root_init_smoothing.enabled = true;
+  RecordingLineReporter reporter;
+  PrepareRootPoseInit(options, &prepared, &reporter);
+  ASSERT_EQ(reporter.lines.size(), 1u);  // no ground truth: no pose errors
+  EXPECT_EQ(reporter.lines[0].level, ReportLevel::kInfo);
+  EXPECT_EQ(reporter.lines[0].text.rfind(
+                "root-pose smoothing (model.root_init_smoothing), video 0: noise", 0),
+            0u)
+      << reporter.lines[0].text;
+  // Printed with the prefix by the stdout reporter, nothing without a reporter.
   testing::internal::CaptureStdout();
-  PrepareRootPoseInit(options, &prepared, "tool");
-  const std::string printed = testing::internal::GetCapturedStdout();
-  EXPECT_NE(printed.find("tool: root-pose smoothing (model.root_init_smoothing), video 0: noise"),
-            std::string::npos)
-      << printed;
+  StdoutLineReporter printing("tool");
+  printing.Report(reporter.lines[0]);
+  printing.Warning("w");
+  EXPECT_EQ(testing::internal::GetCapturedStdout(),
+            "tool: " + reporter.lines[0].text + "\ntool: warning: w\n");
   testing::internal::CaptureStdout();
-  PrepareRootPoseInit(options, &quiet, "");
+  PrepareRootPoseInit(options, &quiet, nullptr);
   EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
   options.root_init_smoothing.enabled = false;
-  PrepareRootPoseInit(options, &off, "");
+  PrepareRootPoseInit(options, &off, nullptr);
   for (int t = 0; t < 16; ++t) {
     EXPECT_EQ(prepared.videos[0].frames[t].root_pose_init,
               direct.videos[0].frames[t].root_pose_init);

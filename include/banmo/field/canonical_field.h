@@ -63,10 +63,9 @@ struct CanonicalFieldOptions {
   // features).
   static constexpr int kEmbeddingDim = 16;
 
-  // True when all fields are valid.
-  // If error is not null, a failing check writes which field is wrong and
-  // what was expected (e.g. for an InputError naming the config key).
-  bool Check(std::string* error = nullptr) const;
+  // Throws InputError naming the field under `key` ("<key>.sdf_width must
+  // be ...") unless every field is valid.
+  void Check(const std::string& key = "model.field") const;
 };
 
 // Inputs, outputs, input Jacobians and caches of a batched field pass over n

@@ -43,10 +43,9 @@ struct EmbeddingMatcherOptions {
   // the exact top-K.
   int checks = 256;
 
-  // True when the options are valid.
-  // If error is not null, a failing check writes which field is wrong and
-  // what was expected (e.g. for an InputError naming the config key).
-  bool Check(std::string* error = nullptr) const;
+  // Throws InputError naming the field under `key` unless the options are
+  // valid.
+  void Check(const std::string& key = "matcher") const;
 };
 
 struct MatchResult {

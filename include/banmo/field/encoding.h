@@ -31,11 +31,10 @@ struct PositionalEncodingOptions {
   // cycles per unit.
   double base_frequency = 1.0;
 
-  // True when the options are valid (num_bands >= 0, base_frequency > 0,
-  // OutputDim() > 0).
-  // If error is not null, a failing check writes which field is wrong and
-  // what was expected (e.g. for an InputError naming the config key).
-  bool Check(std::string* error = nullptr) const;
+  // Throws InputError naming the field under `key` ("<key>.num_bands must
+  // be ...") unless the options are valid (num_bands in [0, 32],
+  // base_frequency > 0, OutputDim() > 0).
+  void Check(const std::string& key = "position_encoding") const;
 };
 
 class PositionalEncoding {

@@ -33,13 +33,22 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include "banmo/util/enum_names.h"
 
 namespace banmo {
 
 enum class Activation {
   kSoftplus,  // (1/beta) log(1 + exp(beta z)), evaluated overflow-free
   kRelu,      // max(z, 0), derivative 0 at z = 0
+};
+
+template <>
+struct EnumNames<Activation> {
+  static constexpr std::pair<Activation, const char*> kNames[] = {
+      {Activation::kSoftplus, "softplus"}, {Activation::kRelu, "relu"}};
 };
 
 struct MlpOptions {
@@ -57,10 +66,9 @@ struct MlpOptions {
   // Sharpness of the softplus (> 0); large beta approaches ReLU.
   double softplus_beta = 100.0;
 
-  // True when the options are valid.
-  // If error is not null, a failing check writes which field is wrong and
-  // what was expected (e.g. for an InputError naming the config key).
-  bool Check(std::string* error = nullptr) const;
+  // Throws InputError naming the field under `key` unless the options are
+  // valid.
+  void Check(const std::string& key = "mlp") const;
 };
 
 // Activation functions shared by the templated and batched paths.

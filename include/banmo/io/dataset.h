@@ -8,11 +8,13 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "banmo/geometry/camera.h"
 #include "banmo/geometry/mesh.h"
 #include "banmo/geometry/se3.h"
+#include "banmo/util/enum_names.h"
 
 namespace banmo {
 
@@ -126,6 +128,18 @@ enum class FlowEncoding {
 enum class DepthEncoding {
   kPng16,  // depth/%05d.png: 16-bit, value * depth_unit = z in scene units, 0 = background
   kNpy,    // depth/%05d.npy: float32 H x W
+};
+
+// Their names in the manifest.
+template <>
+struct EnumNames<FlowEncoding> {
+  static constexpr std::pair<FlowEncoding, const char*> kNames[] = {
+      {FlowEncoding::kKittiPng16, "kitti_png16"}, {FlowEncoding::kNpy, "npy"}};
+};
+template <>
+struct EnumNames<DepthEncoding> {
+  static constexpr std::pair<DepthEncoding, const char*> kNames[] = {
+      {DepthEncoding::kPng16, "png16"}, {DepthEncoding::kNpy, "npy"}};
 };
 
 struct WriteOptions {

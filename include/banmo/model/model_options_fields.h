@@ -1,10 +1,9 @@
 // The fields of ModelOptions and of the option structs inside it, listed
 // once: VisitFields(visitor, options) calls visitor(key, field) for every
-// field in order. The solver config's YAML reader and writer
-// (src/optim/config.cc, section `model:`) and the model file
-// (model/model_file.h, key `options:`) both walk these lists, so a field is
-// read and written under the same key everywhere by construction. Keys equal
-// the field names.
+// field in order. The YAML walker (util/yaml.h) walks these lists for the
+// solver config (src/optim/config.cc, section `model:`) and the model file
+// (model/model_file.h, key `options:`), so a field is read and written
+// under the same key everywhere by construction. Keys equal the field names.
 #pragma once
 
 #include "banmo/model/model.h"

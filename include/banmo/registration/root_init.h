@@ -10,16 +10,16 @@
 
 #include "banmo/io/dataset.h"
 #include "banmo/model/model.h"
+#include "banmo/util/reporter.h"
 
 namespace banmo {
 
 // Registers and smooths `dataset`'s root_pose_init in place as `options`
-// say. Deterministic, so a resumed solve gets the same poses. With a
-// non-empty `log_prefix`, one line per step on stdout ("<log_prefix>:
-// root-pose registration ..."), and where the dataset has ground truth,
-// the initial poses' rotation error before and after each step that
-// changes them.
-void PrepareRootPoseInit(const ModelOptions& options, Dataset* dataset,
-                         const std::string& log_prefix);
+// say. Deterministic, so a resumed solve gets the same poses. Reports one
+// line per step to `reporter` (if not null; `banmo solve` prints them as
+// "banmo solve: root-pose registration ..."), and where the dataset has
+// ground truth, the initial poses' rotation error before and after each
+// step that changes them.
+void PrepareRootPoseInit(const ModelOptions& options, Dataset* dataset, LineReporter* reporter);
 
 }  // namespace banmo
