@@ -157,6 +157,7 @@ double LrScale(const AdamConfig& a, ParameterGroup group) {
   if (group == ParameterGroup::kRoot) return a.pose_lr_scale;
   if (group == ParameterGroup::kBones || group == ParameterGroup::kBonesT) return a.bone_lr_scale;
   if (group == ParameterGroup::kLogBeta) return a.beta_lr_scale;
+  if (group == ParameterGroup::kIntrinsics) return a.intrinsics_lr_scale;
   return 1.0;
 }
 

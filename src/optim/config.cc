@@ -68,6 +68,7 @@ void VisitFields(V& v, AdamConfig& o) {
   v("pose_lr_scale", o.pose_lr_scale);
   v("bone_lr_scale", o.bone_lr_scale);
   v("beta_lr_scale", o.beta_lr_scale);
+  v("intrinsics_lr_scale", o.intrinsics_lr_scale);
   v("bone_basis", o.bone_basis);
   v("root_basis", o.root_basis);
 }
@@ -364,6 +365,7 @@ void AdamConfig::Check(const OptionChecker& c, const std::string& a) const {
   c.PositiveAtMost(a + ".pose_lr_scale", pose_lr_scale, kMaxLearningRate);
   c.PositiveAtMost(a + ".bone_lr_scale", bone_lr_scale, kMaxLearningRate);
   c.PositiveAtMost(a + ".beta_lr_scale", beta_lr_scale, kMaxLearningRate);
+  c.PositiveAtMost(a + ".intrinsics_lr_scale", intrinsics_lr_scale, kMaxLearningRate);
   c.NonNegative(a + ".bone_basis", bone_basis);
   c.NonNegative(a + ".root_basis", root_basis);
 }

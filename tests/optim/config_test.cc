@@ -336,6 +336,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
       {"stages[1].adam.pose_lr_scale", [&](SolverConfig* c) { S(c).adam.pose_lr_scale = 0; }},
       {"stages[1].adam.bone_lr_scale", [&](SolverConfig* c) { S(c).adam.bone_lr_scale = -1; }},
       {"stages[1].adam.beta_lr_scale", [&](SolverConfig* c) { S(c).adam.beta_lr_scale = 0; }},
+      {"stages[1].adam.intrinsics_lr_scale",
+       [&](SolverConfig* c) { S(c).adam.intrinsics_lr_scale = 0; }},
       {"stages[1].adam.bone_basis", [&](SolverConfig* c) { S(c).adam.bone_basis = -1; }},
       {"stages[1].adam.root_basis", [&](SolverConfig* c) { S(c).adam.root_basis = -2; }},
       {"stages[1].lm.max_cg_iterations", [&](SolverConfig* c) { S(c).lm.max_cg_iterations = 0; }},
@@ -814,8 +816,8 @@ SolverConfig EveryFieldChanged() {
     l.bone_inside_margin = 0.031;
     l.feature_render_embedding_only = true;
     s.constant = {ParameterGroup::kSdf, ParameterGroup::kEmbedding};
-    s.adam = {1.25e-3, 0.85, 0.995, 1e-10, 1e-4, LrSchedule::kConstant, 0.2, 0.05,
-              2.5,     3.5,  4.5,   12,    5};
+    s.adam = {1.25e-3, 0.85, 0.995, 1e-10, 1e-4, LrSchedule::kConstant, 0.2, 0.05, 2.5,
+              3.5,     4.5,  40,    12,    5};
     s.lm = {9, 123.0, 4.5e7, LinearSolverType::kIterativeSchur, 2};
     s.sampling.foreground_fraction = 0.7;
     s.sampling.boundary_fraction = 0.2;
@@ -969,6 +971,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.adam.pose_lr_scale, t.adam.pose_lr_scale);
     EXPECT_EQ(s.adam.bone_lr_scale, t.adam.bone_lr_scale);
     EXPECT_EQ(s.adam.beta_lr_scale, t.adam.beta_lr_scale);
+    EXPECT_EQ(s.adam.intrinsics_lr_scale, t.adam.intrinsics_lr_scale);
     EXPECT_EQ(s.adam.bone_basis, t.adam.bone_basis);
     EXPECT_EQ(s.adam.root_basis, t.adam.root_basis);
     EXPECT_EQ(s.lm.max_cg_iterations, t.lm.max_cg_iterations);

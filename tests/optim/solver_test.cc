@@ -134,6 +134,26 @@ TEST(Solver, BetaLearningRateScaleMultipliesTheFirstStep) {
   EXPECT_NEAR(moved[1], 10.0 * moved[0], 1e-5 * lr);
 }
 
+// The same for the intrinsics (pixels), freed from the group list: the first
+// step moves fx by lr * intrinsics_lr_scale.
+TEST(Solver, IntrinsicsLearningRateScaleMultipliesTheFirstStep) {
+  const Dataset& data = TinyDataset();
+  std::vector<double> moved;
+  for (const double scale : {1.0, 50.0}) {
+    SolverConfig config = TinyConfig(StepRule::kAdam, 1);
+    config.stages[0].constant.clear();
+    config.stages[0].adam.schedule = LrSchedule::kConstant;
+    config.stages[0].adam.intrinsics_lr_scale = scale;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    const double before = solver.model().video(0).intrinsics[0];
+    solver.Run(options_quiet());
+    moved.push_back(solver.model().video(0).intrinsics[0] - before);
+  }
+  const double lr = TinyConfig(StepRule::kAdam, 1).stages[0].adam.lr;
+  EXPECT_NEAR(std::abs(moved[0]), lr, 1e-6 * lr);
+  EXPECT_NEAR(moved[1], 50.0 * moved[0], 5e-5 * lr);
+}
+
 // schedule.root_free_from: the root corrections stay exactly where they are
 // before the fraction and move after it.
 TEST(Solver, RootCorrectionsAreHeldUntilTheirFraction) {
