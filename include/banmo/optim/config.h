@@ -108,8 +108,9 @@ struct AdamConfig {
   // lr 2e-3 beta can shrink by at most a factor of about 2 over a stage.
   double beta_lr_scale = 1.0;
   // The intrinsics [fx, fy, cx, cy] are in pixels, so at lr 2e-3 a stage
-  // moves a focal length by a few pixels at most: a free focal (group
-  // `intrinsics` not constant) needs a scale of about 50 (0.1 px a batch).
+  // moves a freed focal length (group `intrinsics` not constant) by a few
+  // pixels at most; 50 moves it about 0.1 px a batch. On casual renders
+  // that did not recover a wrong focal length (benchmarks/log/2026-12.md).
   double intrinsics_lr_scale = 1.0;
   // Temporal bases of the per-frame steps (docs/solver.md, "Temporal step
   // bases"): with K > 0, Adam steps each video's bone transforms (root
