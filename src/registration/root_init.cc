@@ -20,8 +20,8 @@ void PrepareRootPoseInit(const ModelOptions& options, Dataset* dataset, LineRepo
     if (const std::optional<RootPoseErrors> e = InitialRootPoseErrors(*dataset)) {
       report.Info(
           StrPrintf("%s root poses: rotation error %.2f deg mean, %.2f deg p90 against the "
-                    "ground truth",
-                    label, e->mean_deg, e->p90_deg));
+                    "ground truth (each video aligned on its own: %.2f deg mean)",
+                    label, e->mean_deg, e->p90_deg, e->video_aligned_mean_deg));
     }
   };
   print_pose_error("initial");

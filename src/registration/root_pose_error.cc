@@ -49,6 +49,23 @@ std::optional<RootPoseErrors> Errors(const Dataset& dataset, const Estimate& est
     frames[i].rotation_deg = AngleDeg((gt[i] * out.alignment).transpose() * est[i]);
     angles.push_back(frames[i].rotation_deg);
   }
+  // Each video aligned on its own.
+  double video_total = 0.0;
+  for (size_t begin = 0; begin < frames.size();) {
+    size_t end = begin;
+    Eigen::Matrix3d video_sum = Eigen::Matrix3d::Zero();
+    while (end < frames.size() && frames[end].video == frames[begin].video) {
+      video_sum += gt[end].transpose() * est[end];
+      ++end;
+    }
+    const Eigen::Matrix3d a = NearestRotation(video_sum);
+    for (size_t i = begin; i < end; ++i) {
+      frames[i].video_rotation_deg = AngleDeg((gt[i] * a).transpose() * est[i]);
+      video_total += frames[i].video_rotation_deg;
+    }
+    begin = end;
+  }
+  out.video_aligned_mean_deg = video_total / frames.size();
   out.frames = std::move(frames);
   double total = 0.0;
   for (double a : angles) total += a;

@@ -40,6 +40,20 @@ TEST(RootPoseErrors, AGlobalTurnIsAlignedAway) {
   EXPECT_NEAR(e->alignment_deg, Eigen::Vector3d(0.3, -0.5, 0.2).norm() / kDeg, 1e-6);
 }
 
+// Two videos each turned by its own rotation: wrong against each other
+// (the global error), right within each (the per-video one).
+TEST(RootPoseErrors, EachVideoAlignedOnItsOwn) {
+  Dataset d = PosedDataset(12, Eigen::Vector3d(0.3, -0.5, 0.2));
+  Dataset other = PosedDataset(12, Eigen::Vector3d(-1.0, 0.4, 0.9));
+  d.videos.push_back(other.videos[0]);
+  const std::optional<RootPoseErrors> e = InitialRootPoseErrors(d);
+  ASSERT_TRUE(e.has_value());
+  ASSERT_EQ(e->frames.size(), 24u);
+  EXPECT_GT(e->mean_deg, 20.0);  // the two turns are about 80 deg apart
+  EXPECT_LT(e->video_aligned_mean_deg, 1e-9);
+  for (const RootPoseErrors::FrameError& f : e->frames) EXPECT_LT(f.video_rotation_deg, 1e-9);
+}
+
 TEST(RootPoseErrors, OneFrameOffShowsInItsRowAndTheStatistics) {
   Dataset d = PosedDataset(10, Eigen::Vector3d::Zero());
   Frame& f = d.videos[0].frames[4];

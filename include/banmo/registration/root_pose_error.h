@@ -18,7 +18,8 @@ struct RootPoseErrors {
   struct FrameError {
     int video = 0;
     int frame = 0;
-    double rotation_deg = 0.0;  // angle between R_gt^t A and R^t
+    double rotation_deg = 0.0;        // angle between R_gt^t A and R^t
+    double video_rotation_deg = 0.0;  // the same with the video's own A (video_aligned_mean_deg)
   };
   std::vector<FrameError> frames;  // usable frames with a ground-truth pose
   // A: the rotation of the model's canonical frame in the ground truth's
@@ -29,6 +30,10 @@ struct RootPoseErrors {
   double mean_deg = 0.0;
   double p90_deg = 0.0;  // 90th percentile (nearest rank)
   double max_deg = 0.0;
+  // The mean error when each video is aligned on its own (its own A): how
+  // well the frames of a video agree with each other, whatever the videos'
+  // relative rotations.
+  double video_aligned_mean_deg = 0.0;
 };
 
 // The errors of `model`'s root poses (Model::RootPose) against
