@@ -49,7 +49,7 @@ TEST(RootPoseErrors, EachVideoAlignedOnItsOwn) {
   const std::optional<RootPoseErrors> e = InitialRootPoseErrors(d);
   ASSERT_TRUE(e.has_value());
   ASSERT_EQ(e->frames.size(), 24u);
-  EXPECT_GT(e->mean_deg, 20.0);  // the two turns are about 80 deg apart
+  EXPECT_GT(e->mean_deg, 20.0);  // the two turns are 98 deg apart
   EXPECT_LT(e->video_aligned_mean_deg, 1e-9);
   for (const RootPoseErrors::FrameError& f : e->frames) EXPECT_LT(f.video_rotation_deg, 1e-9);
 }
