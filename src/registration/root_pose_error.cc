@@ -22,6 +22,15 @@ double AngleDeg(const Eigen::Matrix3d& r) {
   return 2.0 * std::atan2(q.vec().norm(), std::abs(q.w())) * 180.0 / M_PI;
 }
 
+// A = argmin sum |R_gt A - R|_F^2 over frames [begin, end) = the SO(3)
+// projection of sum R_gt^T R.
+Eigen::Matrix3d Alignment(const std::vector<Eigen::Matrix3d>& gt,
+                          const std::vector<Eigen::Matrix3d>& est, size_t begin, size_t end) {
+  Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+  for (size_t i = begin; i < end; ++i) sum += gt[i].transpose() * est[i];
+  return NearestRotation(sum);
+}
+
 // Errors of `estimate(v, t)` against the ground truth of every usable frame.
 template <class Estimate>
 std::optional<RootPoseErrors> Errors(const Dataset& dataset, const Estimate& estimate) {
@@ -38,11 +47,8 @@ std::optional<RootPoseErrors> Errors(const Dataset& dataset, const Estimate& est
     }
   }
   if (frames.empty()) return std::nullopt;
-  // A = argmin sum |R_gt A - R|_F^2 = the SO(3) projection of sum R_gt^T R.
-  Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < gt.size(); ++i) sum += gt[i].transpose() * est[i];
   RootPoseErrors out;
-  out.alignment = NearestRotation(sum);
+  out.alignment = Alignment(gt, est, 0, gt.size());
   out.alignment_deg = AngleDeg(out.alignment);
   std::vector<double> angles;
   for (size_t i = 0; i < gt.size(); ++i) {
@@ -53,12 +59,8 @@ std::optional<RootPoseErrors> Errors(const Dataset& dataset, const Estimate& est
   double video_total = 0.0;
   for (size_t begin = 0; begin < frames.size();) {
     size_t end = begin;
-    Eigen::Matrix3d video_sum = Eigen::Matrix3d::Zero();
-    while (end < frames.size() && frames[end].video == frames[begin].video) {
-      video_sum += gt[end].transpose() * est[end];
-      ++end;
-    }
-    const Eigen::Matrix3d a = NearestRotation(video_sum);
+    while (end < frames.size() && frames[end].video == frames[begin].video) ++end;
+    const Eigen::Matrix3d a = Alignment(gt, est, begin, end);
     for (size_t i = begin; i < end; ++i) {
       frames[i].video_rotation_deg = AngleDeg((gt[i] * a).transpose() * est[i]);
       video_total += frames[i].video_rotation_deg;
