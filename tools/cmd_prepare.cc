@@ -21,9 +21,11 @@ int RunPrepare(int argc, char** argv) {
       "Prepare a dataset (docs/dataset.md) from a real video: frames from a video file or a "
       "folder of images, one mask per frame, optical flow computed with OpenCV's DIS flow "
       "(forward and backward for every gap) and occlusion from forward-backward consistency.\n"
-      "Without --poses, every root pose is the identity rotation with the root origin at "
-      "--distance on the ray through the frame's mask centroid (--roots-on-axis: on the "
-      "optical axis). Without --intrinsics, fx = fy = max(width, "
+      "Without --poses, every root pose is the identity rotation with the root origin on the "
+      "ray through the frame's mask centroid (--roots-on-axis: on the optical axis), at "
+      "--distance for a mask of the video's median area and farther for smaller masks "
+      "(depth ~ 1 / sqrt(area); --roots-at-distance: every frame at --distance). Without "
+      "--intrinsics, fx = fy = max(width, "
       "height) and the principal point is the image centre. Without --features, the dataset "
       "has no feature files.\n"
       "Several videos: prepare the first into a new dataset, then each further one with "
@@ -67,12 +69,17 @@ int RunPrepare(int argc, char** argv) {
                  "Video folder name in the dataset (default: video_000, or with --add the first "
                  "free one of video_000, video_001, ...)");
   app.add_option("--distance", options.default_distance,
-                 "Object distance of the default root poses (scene units)")
+                 "Object distance of the default root poses (scene units): the depth of a frame "
+                 "whose mask has the video's median area")
       ->capture_default_str();
   bool on_axis = false;
   app.add_flag("--roots-on-axis", on_axis,
                "Without --poses: put the root origin on the optical axis in every frame instead "
                "of on the ray through the frame's mask centroid");
+  bool at_distance = false;
+  app.add_flag("--roots-at-distance", at_distance,
+               "Without --poses: every root origin at depth --distance instead of a depth by "
+               "the mask's size (sqrt(median area / area) x --distance, within 3x)");
   options.max_size = 320;
   app.add_option("--max-size", options.max_size,
                  "Working resolution: frames whose longer side exceeds this many pixels are "
@@ -102,6 +109,7 @@ int RunPrepare(int argc, char** argv) {
       ->excludes(overwrite_flag);
   CLI11_PARSE(app, argc, argv);
   options.roots_on_mask_centroids = !on_axis;
+  options.roots_depth_from_mask_size = !at_distance;
 
   if (options.video_path.empty() && options.frames_dir.empty()) {
     ThrowInputError("banmo prepare: give --video FILE or --frames DIR");

@@ -507,21 +507,33 @@ void ScaleFrames(cv::Size size, const std::string& source, Video* video) {
 
 }  // namespace
 
-void PlaceRootsOnMaskCentroids(double distance, Video* video) {
+void PlaceRootsOnMaskCentroids(double distance, bool depth_from_size, Video* video) {
   const Eigen::Vector4d& k = video->camera.intrinsics;
   const int n = static_cast<int>(video->frames.size());
   std::vector<int> placed;  // frames with object pixels
+  std::vector<cv::Moments> moments(n);
+  std::vector<double> areas;
   for (int t = 0; t < n; ++t) {
-    Frame& f = video->frames[t];
-    const cv::Moments m = cv::moments(f.mask == kMaskObject, true);
-    if (m.m00 <= 0.0) continue;
-    const double u = m.m10 / m.m00 + 0.5, v = m.m01 / m.m00 + 0.5;
-    f.root_pose_init[kPoseT + 0] = distance * (u - k[2]) / k[0];
-    f.root_pose_init[kPoseT + 1] = distance * (v - k[3]) / k[1];
-    f.root_pose_init[kPoseT + 2] = distance;
+    moments[t] = cv::moments(video->frames[t].mask == kMaskObject, true);
+    if (moments[t].m00 <= 0.0) continue;
     placed.push_back(t);
+    areas.push_back(moments[t].m00);
   }
   if (placed.empty()) return;
+  std::nth_element(areas.begin(), areas.begin() + areas.size() / 2, areas.end());
+  const double median_area = areas[areas.size() / 2];
+  for (int t : placed) {
+    const cv::Moments& m = moments[t];
+    const double depth = depth_from_size
+                             ? distance * std::clamp(std::sqrt(median_area / m.m00),
+                                                     1.0 / kMaxRootDepthRatio, kMaxRootDepthRatio)
+                             : distance;
+    const double u = m.m10 / m.m00 + 0.5, v = m.m01 / m.m00 + 0.5;
+    Frame& f = video->frames[t];
+    f.root_pose_init[kPoseT + 0] = depth * (u - k[2]) / k[0];
+    f.root_pose_init[kPoseT + 1] = depth * (v - k[3]) / k[1];
+    f.root_pose_init[kPoseT + 2] = depth;
+  }
   for (int t = 0; t < n; ++t) {
     const auto after = std::lower_bound(placed.begin(), placed.end(), t);
     if (after != placed.end() && *after == t) continue;
@@ -572,7 +584,7 @@ Dataset PrepareDataset(const PrepareOptions& options) {
     for (int t = 0; t < static_cast<int>(rgb.size()); ++t) rgb[t] = video.frames[t].rgb;
   }
   if (options.poses_path.empty() && options.roots_on_mask_centroids) {
-    PlaceRootsOnMaskCentroids(options.default_distance, &video);
+    PlaceRootsOnMaskCentroids(options.default_distance, options.roots_depth_from_mask_size, &video);
   }
   ComputeFlows(dataset.flow_gaps, options.flow, rgb, &video);
   LOG(INFO) << "prepare: flow for " << dataset.flow_gaps.size() << " gaps in " << timer.Seconds()

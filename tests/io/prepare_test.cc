@@ -106,7 +106,7 @@ TEST(Prepare, RootsOnMaskCentroids) {
   video.frames[3].mask.at<unsigned char>(5, 30) = kMaskObject;
   video.frames[3].root_pose_init[kPoseQw] = 0.0;
   video.frames[3].root_pose_init[kPoseQw + 1] = 1.0;
-  PlaceRootsOnMaskCentroids(2.0, &video);
+  PlaceRootsOnMaskCentroids(2.0, /*depth_from_size=*/false, &video);
   auto expect_on_ray = [&](int t, double u, double v) {
     const Pose& g = video.frames[t].root_pose_init;
     EXPECT_NEAR(g[kPoseT + 2], 2.0, 1e-12) << t;
@@ -119,6 +119,40 @@ TEST(Prepare, RootsOnMaskCentroids) {
   expect_on_ray(3, 30.5, 5.5);
   EXPECT_EQ(video.frames[3].root_pose_init[kPoseQw + 1], 1.0);
   EXPECT_EQ(video.frames[0].root_pose_init[kPoseQw], 1.0);
+}
+
+TEST(Prepare, RootDepthFromMaskSize) {
+  // Five frames of 60 x 40 px, fx = fy = 50, principal point (30, 20), with
+  // object squares of side 8, 4, 16, 8 and 1 px (areas 64, 16, 256, 64, 1;
+  // median 64) and one empty frame. Depth = 2 sqrt(64 / area): 2, 4, 1, 2,
+  // and 16 clamped to 2 x kMaxRootDepthRatio = 6; the empty frame takes its
+  // nearest neighbour's translation. Each origin stays on its centroid's ray.
+  Video video;
+  video.camera.width = 60;
+  video.camera.height = 40;
+  video.camera.intrinsics = Eigen::Vector4d(50, 50, 30, 20);
+  const int sides[] = {8, 4, 16, 8, 1, 0};
+  video.frames.resize(6);
+  for (int t = 0; t < 6; ++t) {
+    Frame& f = video.frames[t];
+    f.mask = cv::Mat(40, 60, CV_8UC1, cv::Scalar(kMaskBackground));
+    if (sides[t] > 0) f.mask(cv::Rect(10 + t, 5 + t, sides[t], sides[t])).setTo(kMaskObject);
+    f.root_pose_init = PoseIdentity();
+  }
+  PlaceRootsOnMaskCentroids(2.0, /*depth_from_size=*/true, &video);
+  const double depths[] = {2.0, 4.0, 1.0, 2.0, 2.0 * kMaxRootDepthRatio};
+  for (int t = 0; t < 5; ++t) {
+    const Pose& g = video.frames[t].root_pose_init;
+    EXPECT_NEAR(g[kPoseT + 2], depths[t], 1e-12) << t;
+    const double u = 10 + t + sides[t] / 2.0, v = 5 + t + sides[t] / 2.0;
+    EXPECT_NEAR(50.0 * g[kPoseT] / g[kPoseT + 2] + 30.0, u, 1e-9) << t;
+    EXPECT_NEAR(50.0 * g[kPoseT + 1] / g[kPoseT + 2] + 20.0, v, 1e-9) << t;
+  }
+  EXPECT_EQ(video.frames[5].root_pose_init, video.frames[4].root_pose_init);
+
+  // Off: every frame at the given depth.
+  PlaceRootsOnMaskCentroids(2.0, /*depth_from_size=*/false, &video);
+  for (int t = 0; t < 6; ++t) EXPECT_EQ(video.frames[t].root_pose_init[kPoseT + 2], 2.0) << t;
 }
 
 TEST(Prepare, DisFlowMatchesKnownMotion) {

@@ -42,6 +42,10 @@ struct PrepareOptions {
   // term has little gradient for a rendered object that does not overlap
   // its mask. false: on the optical axis in every frame.
   bool roots_on_mask_centroids = true;
+  // ... at a depth by the mask's size (true): `default_distance` for a frame
+  // whose mask has the video's median area, farther for smaller masks
+  // (PlaceRootsOnMaskCentroids). false: every frame at `default_distance`.
+  bool roots_depth_from_mask_size = true;
   int max_frames = 0;  // use at most this many frames from the start (0 = all)
   // Working resolution: frames whose longer side exceeds this many pixels
   // are scaled down to it (colour by area averaging, masks by a vote of the
@@ -65,10 +69,15 @@ Dataset PrepareDataset(const PrepareOptions& options);
 
 // Places the root origin of every frame of `video` (masks and intrinsics
 // set) on the ray through its mask centroid (pixel centres x + 0.5) at depth
-// `distance`, keeping the rotation: t = distance (K^-1 (u, v, 1)). Frames
-// without object pixels take the nearest frame's translation (the earlier
-// one on a tie).
-void PlaceRootsOnMaskCentroids(double distance, Video* video);
+// z_t, keeping the rotation: t = z_t (K^-1 (u, v, 1)). z_t = `distance`, or
+// with `depth_from_size` distance * sqrt(A / A_t), A_t the frame's object
+// pixels and A their median over the video's frames, clamped to
+// [distance / kMaxRootDepthRatio, distance * kMaxRootDepthRatio]: an object's
+// image shrinks as 1 / depth, so a subject walking away starts farther away
+// rather than at one depth the solver must move it from. Frames without object
+// pixels take the nearest frame's translation (the earlier one on a tie).
+inline constexpr double kMaxRootDepthRatio = 3.0;
+void PlaceRootsOnMaskCentroids(double distance, bool depth_from_size, Video* video);
 
 // Converts one mask image (CV_8UC1) to kMaskBackground/Ignore/Object.
 // `binary_01` selects the 0/1 reading of kBinary. Throws InputError naming
