@@ -71,7 +71,8 @@ Dataset PrepareDataset(const PrepareOptions& options);
 // set) on the ray through its mask centroid (pixel centres x + 0.5) at depth
 // z_t, keeping the rotation: t = z_t (K^-1 (u, v, 1)). z_t = `distance`, or
 // with `depth_from_size` distance * sqrt(A / A_t), A_t the frame's object
-// pixels and A their median over the video's frames, clamped to
+// pixels and A their median over the video's frames (the upper middle value
+// for an even count), clamped to
 // [distance / kMaxRootDepthRatio, distance * kMaxRootDepthRatio]: an object's
 // image shrinks as 1 / depth, so a subject walking away starts farther away
 // rather than at one depth the solver must move it from. Frames without object
