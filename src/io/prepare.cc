@@ -13,11 +13,13 @@
 #include <opencv2/videoio.hpp>
 #include <opencv2/videoio/registry.hpp>
 #include <set>
+#include <utility>
 
 #include "banmo/io/codecs.h"
 #include "banmo/io/npy.h"
 #include "banmo/util/error.h"
 #include "banmo/util/logging.h"
+#include "banmo/util/median.h"
 #include "banmo/util/parallel.h"
 #include "banmo/util/timer.h"
 
@@ -520,8 +522,7 @@ void PlaceRootsOnMaskCentroids(double distance, bool depth_from_size, Video* vid
     areas.push_back(moments[t].m00);
   }
   if (placed.empty()) return;
-  std::nth_element(areas.begin(), areas.begin() + areas.size() / 2, areas.end());
-  const double median_area = areas[areas.size() / 2];
+  const double median_area = Median(std::move(areas));
   for (int t : placed) {
     const cv::Moments& m = moments[t];
     const double depth = depth_from_size
