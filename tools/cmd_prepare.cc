@@ -21,12 +21,13 @@ int RunPrepare(int argc, char** argv) {
       "Prepare a dataset (docs/dataset.md) from a real video: frames from a video file or a "
       "folder of images, one mask per frame, optical flow computed with OpenCV's DIS flow "
       "(forward and backward for every gap) and occlusion from forward-backward consistency.\n"
-      "Without --poses, every root pose is the identity rotation with the root origin on the "
-      "ray through the frame's mask centroid (--roots-on-axis: on the optical axis), at "
-      "--distance for a mask of the video's median area and farther for smaller masks "
-      "(depth ~ 1 / sqrt(area); --roots-at-distance: every frame at --distance). Without "
-      "--intrinsics, fx = fy = max(width, "
-      "height) and the principal point is the image centre. Without --features, the dataset "
+      "Without --poses, every root pose has the identity rotation (--roots-turn-with-camera: "
+      "the camera's rotation since the first frame, from the background's flow), with the "
+      "root origin on the ray through the frame's mask centroid "
+      "(--roots-on-axis: on the optical axis), at --distance for a mask of the video's median "
+      "area and farther for smaller masks (depth ~ 1 / sqrt(area); --roots-at-distance: every "
+      "frame at --distance). Without --intrinsics, fx = fy = max(width, height) and the "
+      "principal point is the image centre. Without --features, the dataset "
       "has no feature files.\n"
       "Several videos: prepare the first into a new dataset, then each further one with "
       "--add (same --out); the videos already there are not touched.",
@@ -76,6 +77,12 @@ int RunPrepare(int argc, char** argv) {
   app.add_flag("--roots-on-axis", on_axis,
                "Without --poses: put the root origin on the optical axis in every frame instead "
                "of on the ray through the frame's mask centroid");
+  bool turn_with_camera = false;
+  app.add_flag("--roots-turn-with-camera", turn_with_camera,
+               "Without --poses: each root rotation is the camera's rotation since the first "
+               "frame (a homography or essential matrix fitted to the background's gap-1 flow) "
+               "instead of the identity: for an object that keeps its orientation while the "
+               "camera moves round it");
   bool at_distance = false;
   app.add_flag("--roots-at-distance", at_distance,
                "Without --poses: every root origin at depth --distance instead of a depth by "
@@ -110,6 +117,7 @@ int RunPrepare(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   options.roots_on_mask_centroids = !on_axis;
   options.roots_depth_from_mask_size = !at_distance;
+  options.roots_turn_with_camera = turn_with_camera;
 
   if (options.video_path.empty() && options.frames_dir.empty()) {
     ThrowInputError("banmo prepare: give --video FILE or --frames DIR");

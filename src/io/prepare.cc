@@ -1,5 +1,6 @@
 #include "banmo/io/prepare.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -590,6 +591,22 @@ Dataset PrepareDataset(const PrepareOptions& options) {
   ComputeFlows(dataset.flow_gaps, options.flow, rgb, &video);
   LOG(INFO) << "prepare: flow for " << dataset.flow_gaps.size() << " gaps in " << timer.Seconds()
             << " s";
+  if (options.poses_path.empty() && options.roots_turn_with_camera) {
+    if (std::find(dataset.flow_gaps.begin(), dataset.flow_gaps.end(), 1) ==
+        dataset.flow_gaps.end()) {
+      LOG(WARNING) << "prepare: no flow gap 1 (--gaps): root rotations not turned with the camera";
+    } else {
+      const CameraRotations rotations = EstimateCameraRotations(video, options.camera_rotation);
+      RotateRootsWithCamera(rotations, &video);
+      const double total_deg =
+          Eigen::AngleAxisd(rotations.camera_from_first.back()).angle() * 180.0 / M_PI;
+      LOG(INFO) << "prepare: camera rotation from the background's flow: " << total_deg
+                << " deg from the first frame to the last; "
+                << rotations.step_ok.size() - rotations.FailedSteps() << " of "
+                << rotations.step_ok.size() << " steps fitted (" << rotations.EssentialSteps()
+                << " with parallax, by the essential matrix; the unfitted taken as no turn)";
+    }
+  }
   return dataset;
 }
 

@@ -115,6 +115,18 @@ TEST(PrepareCommand, WritesADatasetThatChecks) {
   EXPECT_NE(again.err.find("not empty"), std::string::npos) << again.err;
   EXPECT_EQ(RunBanmo(tmp, base + " --overwrite --gaps 1").exit_code, 0);
   EXPECT_NE(ReadText(tmp.path() + "/ds/manifest.yaml").find("flow_gaps: [1]"), std::string::npos);
+  // --roots-turn-with-camera reports the camera's turn (of noise frames: the
+  // line is checked, not the turn; tests/io/camera_motion_test.cc checks
+  // turns); without gap 1 it warns and keeps identity rotations.
+  const RunResult turned = RunBanmo(tmp, base + " --overwrite --gaps 1 --roots-turn-with-camera");
+  EXPECT_EQ(turned.exit_code, 0) << turned.err;
+  EXPECT_NE((turned.out + turned.err).find("camera rotation from the background's flow"),
+            std::string::npos)
+      << turned.out << turned.err;
+  const RunResult no_gap_1 = RunBanmo(tmp, base + " --overwrite --gaps 2 --roots-turn-with-camera");
+  EXPECT_EQ(no_gap_1.exit_code, 0) << no_gap_1.err;
+  EXPECT_NE((no_gap_1.out + no_gap_1.err).find("no flow gap 1"), std::string::npos)
+      << no_gap_1.out << no_gap_1.err;
 }
 
 TEST(PrepareCommand, BadArguments) {

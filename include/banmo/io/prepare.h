@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "banmo/io/camera_motion.h"
 #include "banmo/io/dataset.h"
 #include "banmo/io/optical_flow.h"
 
@@ -46,6 +47,15 @@ struct PrepareOptions {
   // whose mask has the video's median area, farther for smaller masks
   // (PlaceRootsOnMaskCentroids). false: every frame at `default_distance`.
   bool roots_depth_from_mask_size = true;
+  // ... and turned with the camera (true): each frame's root rotation is the
+  // camera's rotation since frame 0, estimated from the background's flow
+  // (EstimateCameraRotations), for an object that keeps its orientation in
+  // the world while the camera moves round it. false: identity rotations,
+  // for a subject the camera follows (it keeps facing the camera the same
+  // way). Needs flow gap 1. Off by default: on the six DAVIS clips and the
+  // casual synthetic scene it did not help (docs/dataset.md).
+  bool roots_turn_with_camera = false;
+  CameraRotationOptions camera_rotation;
   int max_frames = 0;  // use at most this many frames from the start (0 = all)
   // Working resolution: frames whose longer side exceeds this many pixels
   // are scaled down to it (colour by area averaging, masks by a vote of the
