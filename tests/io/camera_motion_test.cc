@@ -182,15 +182,7 @@ TEST(CameraRotation, PrepareTurnsRootsWithAPanningCamera) {
   // A texture wider than the view: the first frame's pixels are texture
   // pixels shifted by `pad`.
   const int pad = 80;
-  cv::RNG rng(7);
-  cv::Mat fine(kHeight + 2 * pad, kWidth + 2 * pad, CV_32FC3), coarse = fine.clone();
-  rng.fill(fine, cv::RNG::UNIFORM, 0.0, 1.0);
-  rng.fill(coarse, cv::RNG::UNIFORM, 0.0, 1.0);
-  cv::GaussianBlur(fine, fine, cv::Size(), 1.5);
-  cv::GaussianBlur(coarse, coarse, cv::Size(), 5.0);
-  cv::Mat texture = fine + 2.0 * coarse;
-  cv::normalize(texture, texture, 0, 255, cv::NORM_MINMAX);
-  texture.convertTo(texture, CV_8UC3);
+  const cv::Mat texture = testing::SmoothRandomTexture(kHeight + 2 * pad, kWidth + 2 * pad, 7);
   const int frames = 6;
   for (int t = 0; t < frames; ++t) {
     // Frame pixel x shows first-frame pixel K R_t^T K^-1 x (pixel centres

@@ -43,20 +43,7 @@ cv::Vec2d Apply(const cv::Matx23d& m, const cv::Vec2d& p) {
                    m(1, 0) * p[0] + m(1, 1) * p[1] + m(1, 2));
 }
 
-// Smooth random colour texture: noise at two scales (sigma 1.5 and 5 px).
-cv::Mat MakeTexture() {
-  cv::RNG rng(12345);
-  cv::Mat fine(kTexture, kTexture, CV_32FC3), coarse(kTexture, kTexture, CV_32FC3);
-  rng.fill(fine, cv::RNG::UNIFORM, 0.0, 1.0);
-  rng.fill(coarse, cv::RNG::UNIFORM, 0.0, 1.0);
-  cv::GaussianBlur(fine, fine, cv::Size(), 1.5);
-  cv::GaussianBlur(coarse, coarse, cv::Size(), 5.0);
-  cv::Mat sum = fine + 2.0 * coarse;
-  cv::normalize(sum, sum, 0, 255, cv::NORM_MINMAX);
-  cv::Mat out;
-  sum.convertTo(out, CV_8UC3);
-  return out;
-}
+cv::Mat MakeTexture() { return testing::SmoothRandomTexture(kTexture, kTexture, 12345); }
 
 struct Sequence {
   std::string frames_dir;

@@ -4,8 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <string>
 #include <vector>
@@ -33,6 +36,23 @@ class TempDir {
  private:
   std::string path_;
 };
+
+// Smooth random colour texture (CV_8UC3, rows x cols): uniform noise blurred
+// at two scales (sigma 1.5 and 5 px, the coarse one weighted 2), stretched
+// to 0-255. DIS flow tracks it well at every scale it works on.
+inline cv::Mat SmoothRandomTexture(int rows, int cols, uint64_t seed) {
+  cv::RNG rng(seed);
+  cv::Mat fine(rows, cols, CV_32FC3), coarse(rows, cols, CV_32FC3);
+  rng.fill(fine, cv::RNG::UNIFORM, 0.0, 1.0);
+  rng.fill(coarse, cv::RNG::UNIFORM, 0.0, 1.0);
+  cv::GaussianBlur(fine, fine, cv::Size(), 1.5);
+  cv::GaussianBlur(coarse, coarse, cv::Size(), 5.0);
+  cv::Mat sum = fine + 2.0 * coarse;
+  cv::normalize(sum, sum, 0, 255, cv::NORM_MINMAX);
+  cv::Mat out;
+  sum.convertTo(out, CV_8UC3);
+  return out;
+}
 
 // Two videos (w x h, `frames` frames each), flow gaps {1, 2}, random content
 // with every data type present. Flow values lie in [-6, 6] px.
