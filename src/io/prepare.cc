@@ -108,6 +108,7 @@ void PrepareOptions::Check() const {
                     max_size);
   }
   flow.Check();
+  camera_rotation.Check();
 }
 
 cv::Mat ConvertMask(const cv::Mat& raw, MaskFormat format, bool binary_01,

@@ -1,12 +1,11 @@
 // The camera's own rotation along a video, from the background's optical
 // flow (`banmo prepare`; docs/dataset.md, "Camera rotation from the
 // background"). A hand-held or panning camera that follows its subject turns
-// by tens of degrees (DAVIS parkour 145 deg, libby 79 deg); root poses that
+// by tens of degrees (DAVIS parkour 147 deg, libby 73 deg); root poses that
 // ignore it ask the shape to explain the turn.
 #pragma once
 
 #include <Eigen/Core>
-#include <string>
 #include <vector>
 
 #include "banmo/io/dataset.h"
@@ -21,12 +20,13 @@ struct CameraRotationOptions {
   // At most about this many background pixels a frame pair (a regular
   // grid), with a valid forward-backward check.
   int max_points = 4000;
-  // RANSAC reprojection threshold of the homography (pixels): DIS flow of
-  // textured background is good to a fraction of a pixel.
+  // RANSAC threshold of both models (pixels: the homography's transfer
+  // error, the essential matrix's distance to the epipolar line): DIS flow
+  // of a textured background is good to a fraction of a pixel.
   double ransac_threshold_px = 1.0;
-  // A step is trusted when the homography keeps at least this many inliers
-  // and this fraction of the sampled pixels; else the camera is taken to
-  // have kept its orientation over the step.
+  // A step is trusted when the model it takes keeps at least this many
+  // inliers and this fraction of the sampled pixels; else the camera is
+  // taken to have kept its orientation over the step.
   int min_inliers = 100;
   double min_inlier_fraction = 0.3;
   // A larger turn between consecutive frames is taken as a failed fit.

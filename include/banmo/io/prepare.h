@@ -52,8 +52,9 @@ struct PrepareOptions {
   // (EstimateCameraRotations), for an object that keeps its orientation in
   // the world while the camera moves round it. false: identity rotations,
   // for a subject the camera follows (it keeps facing the camera the same
-  // way). Needs flow gap 1. Off by default: on the six DAVIS clips and the
-  // casual synthetic scene it did not help (docs/dataset.md).
+  // way). Needs flow gap 1. Off by default: on DAVIS libby, parkour and
+  // goat and on the five-video casual scene it did not help
+  // (docs/dataset.md).
   bool roots_turn_with_camera = false;
   CameraRotationOptions camera_rotation;
   int max_frames = 0;  // use at most this many frames from the start (0 = all)
