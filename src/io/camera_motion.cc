@@ -89,11 +89,9 @@ Eigen::Matrix3d ToEigen(const cv::Mat& m) {
 }
 
 // Nearest rotation (Frobenius) to K^-1 H K, or false if H is degenerate.
-bool RotationFromHomography(const cv::Mat& h, const Eigen::Vector4d& k, Eigen::Matrix3d* r) {
-  const Eigen::Matrix3d hm = ToEigen(h);
-  Eigen::Matrix3d km;
-  km << k[0], 0, k[2], 0, k[1], k[3], 0, 0, 1;
-  const Eigen::Matrix3d m = km.inverse() * hm * km;
+bool RotationFromHomography(const cv::Mat& h, const cv::Mat& camera, Eigen::Matrix3d* r) {
+  const Eigen::Matrix3d km = ToEigen(camera);
+  const Eigen::Matrix3d m = km.inverse() * ToEigen(h) * km;
   // A singular H (all points on a line) has no rotation near it.
   if (!m.allFinite() || !(std::abs(m.determinant()) > 1e-12 * std::pow(m.norm(), 3))) return false;
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
@@ -136,7 +134,8 @@ bool StepRotation(const std::vector<cv::Point2f>& from, const std::vector<cv::Po
       return true;
     }
   }
-  return h_kept >= needed && RotationFromHomography(h, k, r) && Degrees(*r) <= options.max_step_deg;
+  return h_kept >= needed && RotationFromHomography(h, camera, r) &&
+         Degrees(*r) <= options.max_step_deg;
 }
 
 }  // namespace
