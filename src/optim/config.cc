@@ -87,6 +87,7 @@ void VisitFields(V& v, SamplingConfig& o) {
   v("foreground_fraction", o.foreground_fraction);
   v("boundary_fraction", o.boundary_fraction);
   v("active_fraction", o.active_fraction);
+  v("crop_scale", o.crop_scale);
   v("importance_depth", o.importance_depth);
   v("importance_samples", o.importance_samples);
   v("min_sdf_sample", o.min_sdf_sample);
@@ -389,6 +390,10 @@ void SamplingConfig::Check(const OptionChecker& c, const std::string& g) const {
            1.0 - foreground_fraction, "), got ", boundary_fraction);
   }
   c.Fraction(g + ".active_fraction", active_fraction);
+  if (crop_scale != 0.0 && !(crop_scale >= 1.0 && std::isfinite(crop_scale))) {
+    c.Fail(g + ".crop_scale", "expected 0 (the whole image) or a finite number >= 1, got ",
+           crop_scale);
+  }
   c.NonNegative(g + ".importance_samples", importance_samples);
   if (importance_samples > kMaxSamplesPerRay) {
     c.Fail(g + ".importance_samples", "expected at most ", kMaxSamplesPerRay, ", got ",

@@ -13,6 +13,7 @@ RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
   object_pixels_.resize(dataset.videos.size());
   boundary_pixels_.resize(dataset.videos.size());
   in_boundary_.resize(dataset.videos.size());
+  object_box_.resize(dataset.videos.size());
   const cv::Mat kernel = cv::getStructuringElement(
       cv::MORPH_RECT, cv::Size(2 * kBoundaryBandPx + 1, 2 * kBoundaryBandPx + 1));
   for (size_t v = 0; v < dataset.videos.size(); ++v) {
@@ -20,6 +21,7 @@ RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
     object_pixels_[v].resize(video.frames.size());
     boundary_pixels_[v].resize(video.frames.size());
     in_boundary_[v].resize(video.frames.size());
+    object_box_[v].resize(video.frames.size());
     for (size_t t = 0; t < video.frames.size(); ++t) {
       const Frame& f = video.frames[t];
       if (f.skip) continue;
@@ -42,6 +44,7 @@ RaySampler::RaySampler(const Dataset& dataset) : dataset_(dataset) {
           if (in_band[x] != 0) edge.push_back(y * f.mask.cols + x);
         }
       }
+      if (!pixels.empty()) object_box_[v][t] = cv::boundingRect(object);
     }
   }
   CHECK(!frames_.empty()) << "the dataset has no usable frame";
@@ -175,9 +178,25 @@ std::vector<Ray> RaySampler::SampleFrame(int video, int frame, int count, int sa
   return rays;
 }
 
+cv::Rect RaySampler::CropRect(int video, int frame, const SamplingConfig& sampling) const {
+  const cv::Mat& mask = dataset_.videos[video].frames[frame].mask;
+  const cv::Rect image(0, 0, mask.cols, mask.rows);
+  const cv::Rect& box = object_box_[video][frame];
+  if (sampling.crop_scale <= 0.0 || box.area() == 0) return image;
+  // Scaled about the box's centre, to whole pixels; at least the box itself.
+  const double cx = box.x + 0.5 * box.width, cy = box.y + 0.5 * box.height;
+  const double hw = 0.5 * box.width * sampling.crop_scale;
+  const double hh = 0.5 * box.height * sampling.crop_scale;
+  const int x0 = std::min(box.x, static_cast<int>(std::floor(cx - hw)));
+  const int y0 = std::min(box.y, static_cast<int>(std::floor(cy - hh)));
+  const int x1 = std::max(box.x + box.width, static_cast<int>(std::ceil(cx + hw)));
+  const int y1 = std::max(box.y + box.height, static_cast<int>(std::ceil(cy + hh)));
+  return cv::Rect(x0, y0, x1 - x0, y1 - y0) & image;
+}
+
 // A ray of frame (v, t): inside the mask with probability
 // sampling.foreground_fraction, in the edge band with probability
-// sampling.boundary_fraction, else uniform over the image.
+// sampling.boundary_fraction, else uniform over the frame's crop (CropRect).
 Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfig& sampling,
                           const Model& model, const Eigen::AlignedBox3d& bounds,
                           std::mt19937* rng) const {
@@ -198,8 +217,9 @@ Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfi
     x = p % f.mask.cols;
     y = p / f.mask.cols;
   } else {
-    x = std::uniform_int_distribution<int>(0, f.mask.cols - 1)(*rng);
-    y = std::uniform_int_distribution<int>(0, f.mask.rows - 1)(*rng);
+    const cv::Rect crop = CropRect(v, t, sampling);
+    x = std::uniform_int_distribution<int>(crop.x, crop.x + crop.width - 1)(*rng);
+    y = std::uniform_int_distribution<int>(crop.y, crop.y + crop.height - 1)(*rng);
   }
   return MakeRay(v, t, x, y, samples_per_ray, sampling, model, bounds, rng);
 }
@@ -207,7 +227,7 @@ Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfi
 double RaySampler::PixelWeight(int video, int frame, int x, int y,
                                const SamplingConfig& sampling) const {
   const Frame& f = dataset_.videos[video].frames[frame];
-  const double n = static_cast<double>(f.mask.rows) * f.mask.cols;
+  const double n = static_cast<double>(CropRect(video, frame, sampling).area());
   const double n_object = static_cast<double>(object_pixels_[video][frame].size());
   const double n_edge = static_cast<double>(boundary_pixels_[video][frame].size());
   // A part with no pixels falls back to the uniform draw (RandomRay).

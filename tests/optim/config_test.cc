@@ -361,6 +361,8 @@ TEST(SolverConfig, EveryConstraintNamesItsKey) {
        }},
       {"stages[1].sampling.active_fraction",
        [&](SolverConfig* c) { S(c).sampling.active_fraction = -0.1; }},
+      {"stages[1].sampling.crop_scale", [&](SolverConfig* c) { S(c).sampling.crop_scale = 0.5; }},
+      {"stages[1].sampling.crop_scale", [&](SolverConfig* c) { S(c).sampling.crop_scale = -1; }},
       {"stages[1].sampling.near_far_margin",
        [&](SolverConfig* c) { S(c).sampling.near_far_margin = -1; }},
       {"stages[1].sampling.importance_samples",
@@ -827,6 +829,7 @@ SolverConfig EveryFieldChanged() {
     s.sampling.foreground_fraction = 0.7;
     s.sampling.boundary_fraction = 0.2;
     s.sampling.active_fraction = 0.15;
+    s.sampling.crop_scale = 1.75;
     s.sampling.importance_depth = true;
     s.sampling.importance_samples = 19;
     s.sampling.min_sdf_sample = true;
@@ -987,6 +990,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.sampling.foreground_fraction, t.sampling.foreground_fraction);
     EXPECT_EQ(s.sampling.boundary_fraction, t.sampling.boundary_fraction);
     EXPECT_EQ(s.sampling.active_fraction, t.sampling.active_fraction);
+    EXPECT_EQ(s.sampling.crop_scale, t.sampling.crop_scale);
     EXPECT_EQ(s.sampling.importance_depth, t.sampling.importance_depth);
     EXPECT_EQ(s.sampling.near_far_margin, t.sampling.near_far_margin);
     EXPECT_EQ(s.sampling.flow_gaps, t.sampling.flow_gaps);

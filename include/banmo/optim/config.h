@@ -140,7 +140,11 @@ struct SamplingConfig {
   // background pixels with an object pixel that near), where the fitted
   // silhouette's errors sit; foreground_fraction + boundary_fraction <= 1.
   double boundary_fraction = 0.0;
-  double active_fraction = 0.0;   // fraction drawn from the error cache (active sampling)
+  double active_fraction = 0.0;  // fraction drawn from the error cache (active sampling)
+  // The rays drawn uniformly (neither in the mask nor in the edge band) come
+  // from the bounding box of the frame's mask scaled by crop_scale about its
+  // centre (RaySampler::CropRect); 0: from the whole image.
+  double crop_scale = 0.0;
   bool importance_depth = false;  // second pass of samples around the surface
   // With importance_depth: 0 redraws half of the samples_per_ray samples from
   // the first pass's weights (a ray keeps samples_per_ray samples); K > 0

@@ -47,13 +47,23 @@ class RaySampler {
   // Importance weight of pixel (x, y) of frame (video, frame) drawn by the
   // sampler's mixture (`foreground_fraction` f inside the mask,
   // `boundary_fraction` e in the edge band, the rest uniform over the
-  // image): (1 / N) / p(pixel), N the frame's pixel count. A ray's loss
-  // times this weight has the expectation of the same loss over pixels
-  // drawn uniformly, and the weights of a frame's draws average 1:
+  // frame's crop, CropRect): (1 / N) / p(pixel), N the crop's pixel count.
+  // A ray's loss times this weight has the expectation of the same loss
+  // over the crop's pixels drawn uniformly, and the weights of a frame's
+  // draws average 1:
   //   1 / (f N / N_object [object] + e N / N_band [band] + 1 - f - e).
   // Active rays take their pixel's weight too (an approximation: the
-  // error cache's emphasis stays).
+  // error cache's emphasis stays; one jittered next to the crop's edge
+  // counts as inside it).
   double PixelWeight(int video, int frame, int x, int y, const SamplingConfig& sampling) const;
+
+  // The pixels the uniform part of frame (video, frame)'s draws covers: the
+  // whole image when sampling.crop_scale is 0 or the frame has no object
+  // pixel, else the bounding box of its object pixels scaled by crop_scale
+  // about its centre (each side), clipped to the image: the object then
+  // takes the same share of the uniform draws however much of the frame it
+  // fills, as in BANMo's object-centred crops.
+  cv::Rect CropRect(int video, int frame, const SamplingConfig& sampling) const;
 
   // The frame's edge-band pixels (y * width + x, increasing).
   const std::vector<int>& BoundaryPixels(int video, int frame) const {
@@ -101,6 +111,7 @@ class RaySampler {
   std::vector<std::vector<std::vector<int>>> object_pixels_;    // [video][frame] -> y * width + x
   std::vector<std::vector<std::vector<int>>> boundary_pixels_;  // the same, edge band
   std::vector<std::vector<cv::Mat>> in_boundary_;               // CV_8UC1, 1 on the band
+  std::vector<std::vector<cv::Rect>> object_box_;               // bounding box of the object pixels
   std::vector<CachedPixel> error_cache_;
 };
 
