@@ -127,6 +127,7 @@ void VisitFields(V& v, PoseSolveConfig& o) {
   v("search_ratio", o.search_ratio);
   v("search_rotations", o.search_rotations);
   v("search_keep", o.search_keep);
+  v("featureless_only", o.featureless_only);
 }
 
 template <class V>

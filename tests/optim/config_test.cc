@@ -861,6 +861,7 @@ SolverConfig EveryFieldChanged() {
     s.pose_solve.search_rotations = 24;
     s.pose_solve.search_keep = 2;
     s.pose_solve.bones = true;
+    s.pose_solve.featureless_only = true;
     s.bone_registration.at = {0.3, 1.0};
     s.bone_registration.resolution = 64 + i;
     s.bone_registration.vertices = 500 + i;
@@ -1016,6 +1017,7 @@ void ExpectSame(const SolverConfig& a, const SolverConfig& b) {
     EXPECT_EQ(s.pose_solve.search_ratio, t.pose_solve.search_ratio);
     EXPECT_EQ(s.pose_solve.search_rotations, t.pose_solve.search_rotations);
     EXPECT_EQ(s.pose_solve.search_keep, t.pose_solve.search_keep);
+    EXPECT_EQ(s.pose_solve.featureless_only, t.pose_solve.featureless_only);
     EXPECT_EQ(s.pose_solve.bones, t.pose_solve.bones);
     const BoneRegistrationConfig &r = s.bone_registration, &u = t.bone_registration;
     EXPECT_EQ(r.at, u.at);

@@ -370,6 +370,27 @@ TEST(Solver, AlternateMovesRootCorrectionsOnlyInPoseSolves) {
   }
 }
 
+// pose_solve.featureless_only: the solves run on a dataset without pixel
+// features and are skipped on one with them.
+TEST(Solver, FeaturelessOnlyPoseSolvesRunWithoutFeaturesOnly) {
+  Dataset featureless = TinyDataset();
+  for (Video& video : featureless.videos) {
+    for (Frame& f : video.frames) f.features.release();
+  }
+  for (const bool features : {true, false}) {
+    const Dataset& data = features ? TinyDataset() : featureless;
+    SolverConfig config = TinyConfig(StepRule::kAlternate, 4);
+    ASSERT_EQ(config.stages[0].pose_solve.every, 3);
+    config.stages[0].pose_solve.featureless_only = true;
+    Solver solver(data, config, MakeModelForDataset(data, config.model));
+    SolveOptions options;
+    options.quiet = true;
+    const SolveResult r = solver.Run(options);
+    EXPECT_TRUE(r.stages[0].finite) << features;
+    EXPECT_EQ(r.pose_solves.size(), features ? 0u : 1u) << features;
+  }
+}
+
 TEST(Solver, OnBatchSeesEveryBatchInOrder) {
   const Dataset& data = TinyDataset();
   SolverConfig config = TinyConfig(StepRule::kAdam, 5);

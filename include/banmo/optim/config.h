@@ -245,6 +245,9 @@ struct PoseSolveConfig {
   // or alone when the stage holds the root constant); in an `alternate`
   // stage the bone transforms then move only in the solves.
   bool bones = false;
+  // Only on a dataset without pixel features (footage prepared from frames
+  // and masks), whose roots no feature registration has placed.
+  bool featureless_only = false;
 
   void Check(const OptionChecker& c, const std::string& key, int batches) const;
 };
