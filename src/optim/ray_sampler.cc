@@ -227,16 +227,21 @@ Ray RaySampler::RandomRay(int v, int t, int samples_per_ray, const SamplingConfi
 double RaySampler::PixelWeight(int video, int frame, int x, int y,
                                const SamplingConfig& sampling) const {
   const Frame& f = dataset_.videos[video].frames[frame];
-  const double n = static_cast<double>(CropRect(video, frame, sampling).area());
+  const cv::Rect crop = CropRect(video, frame, sampling);
+  const double n = static_cast<double>(crop.area());
   const double n_object = static_cast<double>(object_pixels_[video][frame].size());
   const double n_edge = static_cast<double>(boundary_pixels_[video][frame].size());
   // A part with no pixels falls back to the uniform draw (RandomRay).
   const double fg = n_object > 0 ? sampling.foreground_fraction : 0.0;
   const double fe = n_edge > 0 ? sampling.boundary_fraction : 0.0;
   CHECK_LT(fg + fe, 1.0) << "no pixel weight when no ray is drawn uniformly";
-  double density = 1.0 - fg - fe;  // N p(pixel)
+  // N p(pixel): the uniform part covers the crop only (an edge-band pixel
+  // may lie just outside a tight one).
+  double density = crop.contains(cv::Point(x, y)) ? 1.0 - fg - fe : 0.0;
   if (f.mask.at<unsigned char>(y, x) == kMaskObject) density += fg * n / n_object;
   if (in_boundary_[video][frame].at<unsigned char>(y, x) != 0) density += fe * n / n_edge;
+  // An active ray jittered off the crop: weighed as if just inside it.
+  if (density <= 0.0) density = 1.0 - fg - fe;
   return 1.0 / density;
 }
 

@@ -218,6 +218,22 @@ TEST_F(RaySamplerTest, CropScaleKeepsTheUniformDrawsNearTheObject) {
   }
   sampling.crop_scale = 1.0;
   EXPECT_EQ(sampler.CropRect(v, t, sampling), box);
+  // The edge band reaches past the box: its pixels there are drawn by the
+  // band's part alone, and weighed so.
+  {
+    SamplingConfig band = sampling;
+    band.boundary_fraction = 0.3;
+    const std::vector<int>& edge = sampler.BoundaryPixels(v, t);
+    int outside = 0;
+    for (const int p : edge) {
+      const int x = p % mask.cols, y = p / mask.cols;
+      if (box.contains(cv::Point(x, y))) continue;
+      ++outside;
+      EXPECT_DOUBLE_EQ(sampler.PixelWeight(v, t, x, y, band),
+                       1.0 / (0.3 * box.area() / static_cast<double>(edge.size())));
+    }
+    EXPECT_GT(outside, 0);
+  }
 
   sampling.crop_scale = 1.5;
   sampling.foreground_fraction = 0.5;

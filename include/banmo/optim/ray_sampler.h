@@ -51,10 +51,10 @@ class RaySampler {
   // A ray's loss times this weight has the expectation of the same loss
   // over the crop's pixels drawn uniformly, and the weights of a frame's
   // draws average 1:
-  //   1 / (f N / N_object [object] + e N / N_band [band] + 1 - f - e).
+  //   1 / (f N / N_object [object] + e N / N_band [band] + (1 - f - e) [crop]).
   // Active rays take their pixel's weight too (an approximation: the
-  // error cache's emphasis stays; one jittered next to the crop's edge
-  // counts as inside it).
+  // error cache's emphasis stays; one jittered off the crop and off the
+  // band counts as inside the crop).
   double PixelWeight(int video, int frame, int x, int y, const SamplingConfig& sampling) const;
 
   // The pixels the uniform part of frame (video, frame)'s draws covers: the
