@@ -35,6 +35,15 @@ int Dataset::NumSkippedFrames() const {
   return n;
 }
 
+bool Dataset::HasPixelFeatures() const {
+  for (const Video& v : videos) {
+    for (const Frame& f : v.frames) {
+      if (!f.skip && !f.features.empty()) return true;
+    }
+  }
+  return false;
+}
+
 std::uintmax_t DirectoryBytes(const std::string& dir) {
   std::uintmax_t total = 0;
   std::error_code ec;

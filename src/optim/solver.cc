@@ -50,16 +50,6 @@ Eigen::Matrix3Xd UniformPoints(const Eigen::AlignedBox3d& bounds, int n, std::mt
 }
 void OnSigint(int) { g_interrupted = true; }
 
-// Whether some usable frame has pixel features (pose_solve.featureless_only).
-bool DatasetHasFeatures(const Dataset& dataset) {
-  for (const Video& video : dataset.videos) {
-    for (const Frame& f : video.frames) {
-      if (!f.skip && !f.features.empty()) return true;
-    }
-  }
-  return false;
-}
-
 // Installs the SIGINT handler for the lifetime of a run.
 class SigintGuard {
  public:
@@ -492,7 +482,7 @@ void Solver::RunSchedules(int batch_index, double fraction, const StageRun& run,
 void Solver::SolvePoses(int batch_index, const StageRun& run, StageProblem* problem, RunContext* c,
                         SolveResult* result) {
   const StageConfig& stage = *run.stage;
-  if (stage.pose_solve.featureless_only && DatasetHasFeatures(dataset_)) return;
+  if (stage.pose_solve.featureless_only && dataset_.HasPixelFeatures()) return;
   FramePoseContext context;
   context.batch = problem->batch().options();
   context.batch.weights[LossTerm::kCycle3d] = 0.0;  // no view of the pose

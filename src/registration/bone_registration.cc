@@ -849,11 +849,7 @@ BoneRegistrationReport RegisterBoneMotion(Model* model, const Dataset& dataset,
     report.reason = "the model has no bones";
     return report;
   }
-  bool features = false;
-  for (const Video& video : dataset.videos) {
-    for (const Frame& f : video.frames) features = features || Usable(f);
-  }
-  if (!features) {
+  if (!dataset.HasPixelFeatures()) {
     report.reason = "no frame has pixel features";
     return report;
   }

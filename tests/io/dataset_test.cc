@@ -587,6 +587,19 @@ TEST(DatasetBadInput, EmptyMaskWarnsAndSkips) {
   EXPECT_EQ(d.NumSkippedFrames(), 1);
 }
 
+TEST(Dataset, HasPixelFeaturesCountsOnlyFramesNotSkipped) {
+  Dataset d;
+  d.videos.resize(2);
+  d.videos[0].frames.resize(2);
+  d.videos[1].frames.resize(1);
+  EXPECT_FALSE(d.HasPixelFeatures());
+  Frame& f = d.videos[1].frames[0];
+  f.features = cv::Mat(4, 4, CV_16FC(kFeatureDim), cv::Scalar::all(0));
+  EXPECT_TRUE(d.HasPixelFeatures());
+  f.skip = true;  // an empty or held-out frame's features are never read
+  EXPECT_FALSE(d.HasPixelFeatures());
+}
+
 TEST(PoseFile, RoundTripAndComments) {
   TempDir tmp;
   std::vector<Pose> poses = {PoseIdentity(), PoseFromAngleAxis(Eigen::Vector3d(0.1, -0.2, 0.3),

@@ -92,6 +92,8 @@ struct Dataset {
   int NumFrames() const;
   // Number of frames marked skip (empty masks).
   int NumSkippedFrames() const;
+  // Whether some frame not marked skip has pixel features.
+  bool HasPixelFeatures() const;
 };
 
 // Format version written to and accepted from manifest.yaml.
