@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <map>
 #include <opencv2/imgproc.hpp>
 #include <random>
@@ -350,6 +351,40 @@ TEST_F(RaySamplerTest, OldErrorsAgeOutOfTheCache) {
   sampler.RecordErrors(rays, std::vector<double>(rays.size(), 1.0));
   EXPECT_FALSE(has_huge());
   EXPECT_EQ(sampler.error_cache().size(), RaySampler::kErrorWindow);
+}
+
+// An all-zero feature vector is no feature (docs/dataset.md): features
+// computed only where they are known (a lost track) leave the rest zero, and
+// such rays must not pull the embedding toward the zero vector.
+TEST(RaySamplerFeatures, ZeroFeaturesAreNone) {
+  Dataset data = testing::TinyQuadrupedDataset();
+  int zeroed = 0;
+  for (Video& video : data.videos) {
+    for (Frame& f : video.frames) {
+      ASSERT_FALSE(f.features.empty());
+      f.features = f.features.clone();
+      for (int y = 0; y < f.features.rows; ++y) {  // setTo takes at most 4 channels
+        std::memset(f.features.ptr(y), 0, f.features.elemSize() * (f.features.cols / 2));
+      }
+      zeroed += cv::countNonZero(f.mask.colRange(0, f.mask.cols / 2) == kMaskObject) > 0;
+    }
+  }
+  ASSERT_GT(zeroed, 0);
+  const std::unique_ptr<Model> model =
+      MakeModelForDataset(data, testing::TinySolverConfig(StepRule::kAdam, 1).model);
+  RaySampler sampler(data);
+  SamplingConfig sampling;
+  std::mt19937 rng(11);
+  int left = 0, right = 0;
+  for (const Ray& ray : sampler.Sample(400, 8, sampling, *model, kBounds, &rng)) {
+    if (ray.mask < 0.5) continue;
+    const int cols = data.videos[ray.video].frames[ray.frame].features.cols;
+    const bool in_zeroed_half = static_cast<int>(ray.uv.x()) < cols / 2;
+    EXPECT_EQ(ray.has_feature, !in_zeroed_half) << "pixel " << ray.uv.transpose();
+    (in_zeroed_half ? left : right) += 1;
+  }
+  EXPECT_GT(left, 0);
+  EXPECT_GT(right, 0);
 }
 
 }  // namespace
