@@ -86,8 +86,7 @@ Ray RaySampler::MakeRay(int v, int t, int x, int y, int samples_per_ray,
   if (!f.features.empty() && ray.mask > 0.5) {
     const cv::float16_t* feat = f.features.ptr<cv::float16_t>(y) + kFeatureDim * x;
     for (int k = 0; k < kFeatureDim; ++k) ray.feature[k] = static_cast<float>(feat[k]);
-    // An all-zero feature is none (docs/dataset.md), as in bone registration.
-    ray.has_feature = ray.feature.squaredNorm() > 0;
+    ray.has_feature = IsPixelFeature(feat);
   }
   if (sampling.unbiased_silhouette && ray.mask >= 0.0) {
     ray.silhouette_weight = PixelWeight(v, t, x, y, sampling);

@@ -568,8 +568,8 @@ FrameMatches MatchFrameFeatures(const Eigen::MatrixXd& embedding, const Frame& f
   Eigen::Matrix<double, kFeatureDim, 1> f;
   for (const Eigen::Vector2i& p : object) {
     const cv::float16_t* feat = frame.features.ptr<cv::float16_t>(p.y()) + kFeatureDim * p.x();
+    if (!IsPixelFeature(feat)) continue;
     for (int c = 0; c < kFeatureDim; ++c) f[c] = static_cast<float>(feat[c]);
-    if (!(f.norm() > 1e-12)) continue;  // no feature here
     int best = -1;
     (embedding.transpose() * f).maxCoeff(&best);
     matches.vertex.push_back(best);

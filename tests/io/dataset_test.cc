@@ -600,6 +600,21 @@ TEST(Dataset, HasPixelFeaturesCountsOnlyFramesNotSkipped) {
   EXPECT_FALSE(d.HasPixelFeatures());
 }
 
+TEST(Dataset, IsPixelFeatureIsAnyNonzeroChannel) {
+  std::vector<cv::float16_t> f(kFeatureDim, cv::float16_t(0.0f));
+  EXPECT_FALSE(IsPixelFeature(f.data()));
+  f[7] = cv::float16_t(-0.0f);  // negative zero is zero
+  EXPECT_FALSE(IsPixelFeature(f.data()));
+  // The smallest positive half (2^-24, subnormal) in the last channel counts:
+  // the rule is exact, with no threshold.
+  f[kFeatureDim - 1] = cv::float16_t::fromBits(1);
+  ASSERT_GT(static_cast<float>(f[kFeatureDim - 1]), 0.0f);
+  EXPECT_TRUE(IsPixelFeature(f.data()));
+  f[kFeatureDim - 1] = cv::float16_t(0.0f);
+  f[0] = cv::float16_t(-0.25f);
+  EXPECT_TRUE(IsPixelFeature(f.data()));
+}
+
 TEST(PoseFile, RoundTripAndComments) {
   TempDir tmp;
   std::vector<Pose> poses = {PoseIdentity(), PoseFromAngleAxis(Eigen::Vector3d(0.1, -0.2, 0.3),

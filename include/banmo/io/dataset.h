@@ -36,6 +36,17 @@ struct FlowField {
   cv::Mat valid;  // CV_8UC1
 };
 
+// Whether the kFeatureDim half floats at `feature` (one pixel of
+// Frame::features) are a feature: an all-zero vector is none (docs/dataset.md).
+// Exact: any nonzero channel counts, however small (features are finite:
+// the reader rejects NaN and Inf).
+inline bool IsPixelFeature(const cv::float16_t* feature) {
+  for (int k = 0; k < kFeatureDim; ++k) {
+    if (static_cast<float>(feature[k]) != 0.0f) return true;
+  }
+  return false;
+}
+
 struct Frame {
   int index = 0;     // frame index within its video (0-based)
   cv::Mat rgb;       // CV_8UC3, RGB channel order (not OpenCV's BGR)
