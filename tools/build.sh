@@ -12,4 +12,4 @@ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DBANMO_WERROR="${BANMO_WERROR:-ON}" >/dev/null
 targets=()
 for t in "$@"; do targets+=(--target "$t"); done
-cmake --build "$build" -j "${BANMO_JOBS:-$(nproc)}" "${targets[@]}"
+bash "$root/tools/cmake_build.sh" "$build" "${targets[@]}"

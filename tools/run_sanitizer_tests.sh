@@ -40,11 +40,11 @@ for d in ${dirs//;/ }; do
   done
 done
 start=$(date +%s)
-cmake --build "$build" -j "${BANMO_JOBS:-$(nproc)}" "${targets[@]}"
+bash "$root/tools/cmake_build.sh" "$build" "${targets[@]}"
 echo "[time] sanitizer build $(($(date +%s) - start)) s"
 if [ "$smoke_seconds" != 0 ]; then
   start=$(date +%s)
-  cmake --build "$build" -j "${BANMO_JOBS:-$(nproc)}" --target fuzz_all --target banmo
+  bash "$root/tools/cmake_build.sh" "$build" --target fuzz_all --target banmo
   echo "[time] fuzz smoke targets build $(($(date +%s) - start)) s"
 fi
 
