@@ -153,11 +153,11 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   const StageConfig& s3 = c.stages[2];
   EXPECT_TRUE(s3.sampling.importance_depth);
   EXPECT_EQ(s3.sampling.active_fraction, 0.1);
-  // Every stage draws 30 % of its rays inside the mask, the rest from the
+  // Every stage draws 20 % of its rays inside the mask, the rest from the
   // mask's box x 1.5.
   for (const StageConfig& s : c.stages) {
     EXPECT_EQ(s.sampling.crop_scale, 1.5) << s.name;
-    EXPECT_EQ(s.sampling.foreground_fraction, 0.3) << s.name;
+    EXPECT_EQ(s.sampling.foreground_fraction, 0.2) << s.name;
   }
   // ... starting from the bones registered once more, with the mask term.
   EXPECT_EQ(s3.bone_registration.at, (std::vector<double>{0.0, 1.0}));
