@@ -52,25 +52,28 @@ struct FrameRef {
   int frame;
 };
 
-// The object pixels' features of one frame (kFeatureDim x N) and their
-// pixel centres (2 x N).
+// The features of one frame's object pixels that have one (IsPixelFeature:
+// an all-zero vector is none) (kFeatureDim x N) and their pixel centres
+// (2 x N).
 void ObjectFeatures(const Frame& f, Eigen::MatrixXf* features, Eigen::Matrix2Xd* pixels) {
-  const int dim = f.features.channels();
   const int n = cv::countNonZero(f.mask == kMaskObject);
-  features->resize(dim, n);
+  features->resize(kFeatureDim, n);
   pixels->resize(2, n);
   int k = 0;
   for (int y = 0; y < f.mask.rows; ++y) {
     const unsigned char* m = f.mask.ptr<unsigned char>(y);
     const cv::float16_t* e = f.features.ptr<cv::float16_t>(y);
     for (int x = 0; x < f.mask.cols; ++x) {
-      if (m[x] != kMaskObject) continue;
-      for (int c = 0; c < dim; ++c) (*features)(c, k) = static_cast<float>(e[x * dim + c]);
+      const cv::float16_t* feature = e + x * kFeatureDim;
+      if (m[x] != kMaskObject || !IsPixelFeature(feature)) continue;
+      for (int c = 0; c < kFeatureDim; ++c) (*features)(c, k) = static_cast<float>(feature[c]);
       (*pixels)(0, k) = x + 0.5;
       (*pixels)(1, k) = y + 0.5;
       ++k;
     }
   }
+  features->conservativeResize(Eigen::NoChange, k);
+  pixels->conservativeResize(Eigen::NoChange, k);
 }
 
 // Farthest-point sampling of `count` columns of `sample` (deterministic:

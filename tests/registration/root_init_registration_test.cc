@@ -186,6 +186,60 @@ TEST(RootInitRegistration, NeedsFeaturesInEveryFrame) {
   }
 }
 
+// Features that cover part of the mask: an all-zero feature is none
+// (IsPixelFeature), so its pixel registers as if it were outside the mask.
+// Exact equality: the registration reads the mask only to list the object
+// pixels' features, and both datasets list the same ones.
+TEST(RootInitRegistration, SkipsObjectPixelsWithoutFeatures) {
+  Dataset partial = WithoutPoses();
+  Dataset cut = partial;
+  int zeroed = 0;
+  for (size_t v = 0; v < partial.videos.size(); ++v) {
+    for (size_t t = 0; t < partial.videos[v].frames.size(); ++t) {
+      Frame& f = partial.videos[v].frames[t];
+      Frame& g = cut.videos[v].frames[t];
+      f.features = f.features.clone();  // the copies share pixels with Rendered()
+      for (int y = 0; y < f.mask.rows; ++y) {
+        for (int x = 0; x < f.mask.cols / 2; ++x) {
+          if (f.mask.at<unsigned char>(y, x) != kMaskObject) continue;
+          cv::float16_t* e = f.features.ptr<cv::float16_t>(y) + x * kFeatureDim;
+          for (int c = 0; c < kFeatureDim; ++c) e[c] = cv::float16_t(0.0f);
+          ++zeroed;
+        }
+      }
+      g.mask = g.mask.clone();
+      g.mask(cv::Rect(0, 0, g.mask.cols / 2, g.mask.rows)).setTo(kMaskBackground);
+    }
+  }
+  ASSERT_GT(zeroed, 1000);
+  const RootRegistration a = RegisterRootPoseInit(RootRegistrationOptions(), &partial);
+  const RootRegistration b = RegisterRootPoseInit(RootRegistrationOptions(), &cut);
+  ASSERT_TRUE(a.registered) << a.reason;
+  EXPECT_EQ(a.references, b.references);
+  EXPECT_EQ(a.observations_per_frame, b.observations_per_frame);
+  EXPECT_EQ(a.cost, b.cost);
+  for (size_t v = 0; v < partial.videos.size(); ++v) {
+    for (size_t t = 0; t < partial.videos[v].frames.size(); ++t) {
+      EXPECT_EQ(partial.videos[v].frames[t].root_pose_init, cut.videos[v].frames[t].root_pose_init)
+          << "video " << v << " frame " << t;
+    }
+  }
+}
+
+// Feature files that are zero everywhere carry no feature: nothing to
+// match, the poses stay and the reason says so.
+TEST(RootInitRegistration, AllZeroFeaturesRegisterNothing) {
+  Dataset d = WithoutPoses();
+  for (Video& v : d.videos) {
+    for (Frame& f : v.frames) f.features = cv::Mat::zeros(f.features.size(), f.features.type());
+  }
+  const RootRegistration r = RegisterRootPoseInit(RootRegistrationOptions(), &d);
+  EXPECT_FALSE(r.registered);
+  EXPECT_EQ(r.reason, "no frame has 6 observations");
+  EXPECT_EQ(d.videos[1].frames[4].root_pose_init,
+            WithoutPoses().videos[1].frames[4].root_pose_init);
+}
+
 // One usable frame: nothing to register against; the poses stay.
 TEST(RootInitRegistration, NeedsTwoUsableFrames) {
   Dataset d = WithoutPoses();
