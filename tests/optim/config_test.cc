@@ -142,6 +142,10 @@ TEST(SolverConfig, ProblemFilesFollowThePaperStages) {
   EXPECT_GT(s2.losses[LossTerm::kCycle2d].weight, 0);
   EXPECT_EQ(s2.losses[LossTerm::kRgb].weight, 0);
   EXPECT_EQ(s2.losses[LossTerm::kFlow].weight, 0);
+  // A weak flow term in stages 1 and 3 (0.01 blurred fast motion on real
+  // footage into fog).
+  EXPECT_EQ(c.stages[0].losses[LossTerm::kFlow].weight, 0.002);
+  EXPECT_EQ(c.stages[2].losses[LossTerm::kFlow].weight, 0.002);
   EXPECT_EQ(s2.losses[LossTerm::kFeatureMatch].weight, 0);
   EXPECT_LT(s2.losses[LossTerm::kSilhouette].weight,
             c.stages[0].losses[LossTerm::kSilhouette].weight);
