@@ -198,17 +198,13 @@ TEST(RootInitRegistration, SkipsObjectPixelsWithoutFeatures) {
     for (size_t t = 0; t < partial.videos[v].frames.size(); ++t) {
       Frame& f = partial.videos[v].frames[t];
       Frame& g = cut.videos[v].frames[t];
-      f.features = f.features.clone();  // the copies share pixels with Rendered()
-      for (int y = 0; y < f.mask.rows; ++y) {
-        for (int x = 0; x < f.mask.cols / 2; ++x) {
-          if (f.mask.at<unsigned char>(y, x) != kMaskObject) continue;
-          cv::float16_t* e = f.features.ptr<cv::float16_t>(y) + x * kFeatureDim;
-          for (int c = 0; c < kFeatureDim; ++c) e[c] = cv::float16_t(0.0f);
-          ++zeroed;
-        }
-      }
+      const cv::Rect left(0, 0, f.mask.cols / 2, f.mask.rows);
+      zeroed += cv::countNonZero(f.mask(left) == kMaskObject);
+      // Clones: the copies share pixels with Rendered().
+      f.features = f.features.clone();
+      f.features(left) = cv::Scalar::all(0);  // zero outside the mask already
       g.mask = g.mask.clone();
-      g.mask(cv::Rect(0, 0, g.mask.cols / 2, g.mask.rows)).setTo(kMaskBackground);
+      g.mask(left).setTo(kMaskBackground);
     }
   }
   ASSERT_GT(zeroed, 1000);
