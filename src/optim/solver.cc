@@ -288,8 +288,9 @@ bool Solver::RunStage(int s, RunContext* c, SolveResult* result) {
   state->batch = 0;
   Save(s + 1, 0, c);
   c->Say(SolveMessageKind::kStage, stage, stage.batches,
-         StrPrintf("done: %d batches in %.1f s (%.0f rays/s)%s", summary.batches, summary.seconds,
-                   summary.rays_per_second, summary.finite ? "" : " -- NON-FINITE PARAMETERS"));
+         StrPrintf("done: %d batches in %.1f s (%.0f rays/s), beta %.4g%s", summary.batches,
+                   summary.seconds, summary.rays_per_second, std::exp(*model_->log_beta()),
+                   summary.finite ? "" : " -- NON-FINITE PARAMETERS"));
   return true;
 }
 

@@ -16,6 +16,7 @@
 #include "banmo/optim/checkpoint.h"
 #include "banmo/optim/retarget.h"
 #include "banmo/util/error.h"
+#include "banmo/util/format.h"
 #include "tiny_solver_scene.h"
 
 namespace banmo {
@@ -563,6 +564,10 @@ TEST(Solver, ReportsThroughTheReporter) {
                                                                   {K::kBatch, 20}, {K::kStage, 20}};
   EXPECT_EQ(said, expected);
   EXPECT_EQ(reporter.messages[2].text, "density: NeuS from batch 10 on");
+  // The stage's end line gives the density's scale it ended with.
+  const double beta = std::exp(*solver.model().log_beta());
+  EXPECT_NE(reporter.messages.back().text.find(StrPrintf(", beta %.4g", beta)), std::string::npos)
+      << reporter.messages.back().text;
   EXPECT_EQ(reporter.messages[1].text.rfind("    1/20 ", 0), 0u) << reporter.messages[1].text;
   EXPECT_NE(reporter.messages[1].text.find(" | total="), std::string::npos);
 
